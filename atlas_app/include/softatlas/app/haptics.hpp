@@ -1,0 +1,185 @@
+// Haptics: the Device interface, the scripted and mouse devices, force shaping, and the 1 kHz
+// loop thread with its lock-free exchange with the physics thread.
+//
+//   device --read(t)--> HapticLoop (1 kHz thread) --SeqLock<ToolCommand>--> physics thread
+//   device <--write_force-- ForceShaper <--SeqLock<ToolFeedback>-- physics (tool_reaction)
+//
+// The loop never waits for the physics: it sends the last published force (the physics may run
+// slower than 1 kHz). It never allocates or locks after start().
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace softatlas::app {
+
+using Vec3d = std::array<double, 3>;
+
+// What the device commands this instant. Positions are tool offsets from the grasp point (m);
+// a force-mode device commands a force (N) instead of a position.
+struct ToolCommand {
+  double time_s = 0.0;
+  Vec3d offset_m{0, 0, 0};
+  Vec3d force_N{0, 0, 0};
+  bool force_mode = false;
+  bool engaged = false;   // button down / grasping
+};
+
+struct ToolFeedback {
+  Vec3d reaction_N{0, 0, 0};  // the core's tool_reaction (force of the organ on the tool)
+  bool contact = false;
+  double physics_time_s = 0.0;
+};
+
+class Device {
+ public:
+  virtual ~Device() = default;
+  virtual const char* name() const = 0;
+  // Called by the haptic loop (or the lesson runner) at time t_s since the task started.
+  virtual ToolCommand read(double t_s) = 0;
+  // The shaped force to render (N). Real devices send it to the motors.
+  virtual void write_force(const Vec3d& force_N) = 0;
+  virtual double max_force_N() const = 0;
+};
+
+// Keyframes of a scripted device: linear interpolation between them, last one held.
+struct Keyframe {
+  double t_s = 0.0;
+  Vec3d value{0, 0, 0};  // offset (m) or force (N)
+};
+
+// A YAML timeline (see docs/lessons.md, "device scripts"), one per task.
+class ScriptedDevice final : public Device {
+ public:
+  ScriptedDevice(std::vector<Keyframe> keys, bool force_mode, double max_force_N);
+  const char* name() const override { return "scripted"; }
+  ToolCommand read(double t_s) override;
+  void write_force(const Vec3d& force_N) override;
+  double max_force_N() const override { return max_force_N_; }
+  double duration_s() const { return keys_.empty() ? 0.0 : keys_.back().t_s; }
+  // What the device was sent: peak magnitude and the last value (for tests and reports).
+  double peak_sent_N() const { return peak_sent_N_; }
+  const Vec3d& last_sent_N() const { return last_sent_N_; }
+
+ private:
+  std::vector<Keyframe> keys_;
+  bool force_mode_;
+  double max_force_N_;
+  double peak_sent_N_ = 0.0;
+  Vec3d last_sent_N_{0, 0, 0};
+};
+
+// The mouse as a virtual device: the UI thread drags on the screen plane and sets the offset;
+// the loop reads it through atomics. The force it "renders" is shown as an arrow and a number.
+class MouseDevice final : public Device {
+ public:
+  explicit MouseDevice(double max_force_N) : max_force_N_(max_force_N) {}
+  const char* name() const override { return "mouse"; }
+  ToolCommand read(double t_s) override;
+  void write_force(const Vec3d& force_N) override;
+  double max_force_N() const override { return max_force_N_; }
+  // UI thread:
+  void set(const Vec3d& offset_m, bool engaged);
+  Vec3d force() const;
+
+ private:
+  double max_force_N_;
+  std::atomic<double> ox_{0}, oy_{0}, oz_{0}, fx_{0}, fy_{0}, fz_{0};
+  std::atomic<bool> engaged_{false};
+};
+
+// Clamp to the device limit and ramp on contact: the force grows linearly from 0 to full over
+// ramp_s after contact begins, so a grasp never starts with a step (a jolt in the hand).
+struct ForceShaper {
+  double max_force_N = 4.0;
+  double ramp_s = 0.05;
+  double contact_start_s = -1.0;
+  bool clamped = false;  // last call limited the force
+  Vec3d shape(const Vec3d& force_N, bool contact, double t_s);
+};
+
+// Single-writer sequence lock for a trivially copyable value: the writer never waits; a reader
+// that overlaps a write retries a few times and otherwise keeps its previous value.
+template <class T>
+class SeqLock {
+ public:
+  void store(const T& v) {
+    const uint32_t s = seq_.load(std::memory_order_relaxed);
+    seq_.store(s + 1, std::memory_order_relaxed);
+    std::atomic_thread_fence(std::memory_order_release);
+    std::memcpy(static_cast<void*>(&data_), &v, sizeof(T));
+    std::atomic_thread_fence(std::memory_order_release);
+    seq_.store(s + 2, std::memory_order_release);
+  }
+  bool load(T& out) const {
+    for (int attempt = 0; attempt < 4; ++attempt) {
+      const uint32_t s0 = seq_.load(std::memory_order_acquire);
+      if (s0 & 1u) continue;
+      T copy;
+      std::memcpy(static_cast<void*>(&copy), &data_, sizeof(T));
+      std::atomic_thread_fence(std::memory_order_acquire);
+      if (seq_.load(std::memory_order_relaxed) == s0) {
+        out = copy;
+        return s0 != 0;
+      }
+    }
+    return false;
+  }
+
+ private:
+  std::atomic<uint32_t> seq_{0};
+  T data_{};
+};
+
+struct HapticStats {
+  int64_t cycles = 0;
+  double period_us_p50 = 0, period_us_p99 = 0, period_us_max = 0, period_us_mean = 0;
+  int64_t late_2ms = 0;     // periods longer than 2 ms
+  double period_us_p999 = 0;
+  double peak_force_N = 0;  // largest shaped force sent
+  bool realtime = false;    // SCHED_FIFO granted
+  bool memory_locked = false;
+  std::string message;      // why real time or locking was refused
+};
+
+class HapticLoop {
+ public:
+  // Reserves room for `max_cycles` period samples up front (no allocation while running).
+  HapticLoop(Device& device, ForceShaper shaper, int64_t max_cycles, double rate_hz = 1000.0);
+  ~HapticLoop();
+  void start(bool want_realtime);
+  void stop();
+  bool running() const { return running_.load(); }
+
+  // Physics side (another thread):
+  bool latest_command(ToolCommand& out) const { return command_.load(out); }
+  void publish(const ToolFeedback& fb) { feedback_.store(fb); }
+
+  HapticStats stats() const;  // after stop()
+
+ private:
+  void run();
+  Device& device_;
+  ForceShaper shaper_;
+  double period_ns_;
+  std::vector<int64_t> periods_ns_;
+  int64_t cycles_ = 0;
+  double peak_force_N_ = 0;
+  SeqLock<ToolCommand> command_;
+  SeqLock<ToolFeedback> feedback_;
+  std::atomic<bool> running_{false}, stop_{false};
+  std::thread thread_;
+  bool want_realtime_ = false, realtime_ = false, locked_ = false;
+  std::string message_;
+};
+
+// Tries mlockall(MCL_CURRENT | MCL_FUTURE); returns false with the reason.
+bool lock_memory(std::string& why);
+
+}  // namespace softatlas::app

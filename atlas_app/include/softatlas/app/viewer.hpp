@@ -1,0 +1,77 @@
+// Viewer: ties a GL context, the renderer, the picking BVH and Dear ImGui to an AtlasScene.
+// The same object draws the window (GLFW), headless screenshots (OSMesa), lesson pictures and
+// the render benchmark.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "softatlas/app/camera.hpp"
+#include "softatlas/app/context.hpp"
+#include "softatlas/app/picking.hpp"
+#include "softatlas/app/renderer.hpp"
+#include "softatlas/app/scene.hpp"
+
+struct ImGuiContext;
+
+namespace softatlas::app {
+
+struct Caption {
+  std::string title;    // lesson / step name
+  std::string text;     // what the lesson says
+  std::string status;   // pass / fail line
+  bool ok = true;
+};
+
+class Viewer {
+ public:
+  Viewer(GlContext& context, const AtlasScene& scene);
+  ~Viewer();
+  Viewer(const Viewer&) = delete;
+  Viewer& operator=(const Viewer&) = delete;
+
+  // Per view organ positions (mm, #V*3); refits the picking BVH and uploads to the renderer.
+  void set_geometry(const std::vector<std::vector<float>>& positions_mm);
+  void set_geometry_from_scene();  // same, read from scene.state (single-threaded callers)
+  PickHit pick(float px, float py) const;  // pixel, top-left origin
+  void frame_all();                        // camera fits the view organs
+
+  // One frame: organs, cues, overlay lines, labels, caption; `panel` draws extra ImGui windows
+  // (the interactive panel) between NewFrame and Render.
+  template <class Panel>
+  void render(Panel&& panel) {
+    begin();
+    panel();
+    end();
+  }
+  void render() { begin(); end(); }
+  std::vector<uint8_t> screenshot() const { return context_.read_rgba(); }
+  void save_png(const std::string& path) const;
+
+  Camera camera;
+  Cues cues;
+  std::vector<OrganStyle> styles;  // per view organ
+  std::vector<bool> labeled;       // per view organ: draw the name at its centroid
+  std::vector<Line> lines;         // overlay (tool, force arrow)
+  std::vector<std::pair<Eigen::Vector3f, std::string>> texts;  // world-anchored notes
+  Caption caption;
+  int hovered = -1;                // view organ under the mouse (window)
+  GlContext& context() { return context_; }
+  Renderer& renderer() { return *renderer_; }
+  ImGuiContext* imgui() { return imgui_; }
+
+ private:
+  void begin();
+  void end();
+  GlContext& context_;
+  const AtlasScene& scene_;
+  std::unique_ptr<Renderer> renderer_;
+  PickBvh bvh_;
+  std::vector<std::vector<float>> positions_;
+  std::vector<Eigen::Vector3f> centroids_;
+  ImGuiContext* imgui_ = nullptr;
+  bool glfw_backend_ = false;
+};
+
+}  // namespace softatlas::app

@@ -1,0 +1,371 @@
+#include "softatlas/app/interactive.hpp"
+
+#include <GLFW/glfw3.h>
+#include <imgui.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include "softatlas/app/haptics.hpp"
+#include "softatlas/app/viewer.hpp"
+
+namespace softatlas::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Physics on its own thread; the UI talks to it through small mutex-guarded requests (the UI is
+// not real-time) and the haptic loop through the loop's lock-free SeqLocks.
+struct PhysicsThread {
+  AtlasScene* scene = nullptr;
+  HapticLoop* loop = nullptr;
+  std::mutex mutex;                       // guards requests and the snapshot
+  std::vector<int32_t> grasp_request;     // global vertices to grasp (empty + release_request)
+  bool grasp_pending = false, release_pending = false;
+  std::vector<std::vector<float>> snapshot;
+  double us_per_step = 0, max_disp_mm = 0;
+  std::atomic<bool> stop{false}, paused{false};
+  std::thread thread;
+
+  void run() {
+    const auto t0 = Clock::now();
+    bool attached = false;
+    std::vector<int32_t> verts;
+    std::vector<std::vector<float>> local(snapshot.size());
+    double avg = 0;
+    double sim_offset = 0;
+    while (!stop.load()) {
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (release_pending) {
+          sim::release(scene->state);
+          attached = false;
+          release_pending = false;
+        }
+        if (grasp_pending) {
+          verts = grasp_request;
+          grasp_pending = false;
+          sim::attach(scene->model, scene->state, verts, {0, 0, 0}, 1);
+          attached = true;
+        }
+      }
+      ToolCommand cmd;
+      if (attached && loop->latest_command(cmd)) sim::move_attachment(scene->state, cmd.offset_m);
+      if (paused.load()) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+        sim_offset = scene->state.time_s - std::chrono::duration<double>(Clock::now() - t0).count();
+        continue;
+      }
+      const auto s0 = Clock::now();
+      sim::step(scene->model, scene->state, scene->work);
+      const double us = std::chrono::duration<double>(Clock::now() - s0).count() * 1e6;
+      avg = avg == 0 ? us : 0.98 * avg + 0.02 * us;
+      ToolFeedback fb;
+      fb.reaction_N = sim::tool_reaction(scene->state);
+      fb.contact = attached;
+      loop->publish(fb);
+      if (scene->state.step_count % 8 == 0) {
+        for (size_t k = 0; k < local.size(); ++k) scene->positions_mm(static_cast<int>(k), local[k]);
+        const double disp = attached ? scene->mean_displacement_mm(verts) : 0.0;
+        std::unique_lock<std::mutex> lock(mutex, std::try_to_lock);
+        if (lock.owns_lock()) {
+          snapshot.swap(local);
+          us_per_step = avg;
+          max_disp_mm = disp;
+        }
+      }
+      const double ahead = scene->state.time_s - sim_offset - std::chrono::duration<double>(Clock::now() - t0).count();
+      if (ahead > 0) std::this_thread::sleep_for(std::chrono::duration<double>(ahead));
+    }
+  }
+};
+
+}  // namespace
+
+int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOptions& opt) {
+  std::vector<std::string> shown, context;
+  PhysicsSettings physics;
+  if (lesson) {
+    shown = lesson->organs;
+    context = lesson->context;
+    physics = lesson->physics;
+  }
+  auto ctx = make_glfw_context(opt.width, opt.height, lesson ? "SoftAtlas - " + lesson->title : "SoftAtlas");
+  auto scene = std::make_unique<AtlasScene>(set, shown, context, physics);
+  auto viewer = std::make_unique<Viewer>(*ctx, *scene);
+  viewer->camera.set_view("anterior");
+  viewer->frame_all();
+  MouseDevice mouse(opt.max_force_N);
+  std::string lock_msg;
+  if (!lock_memory(lock_msg)) std::fprintf(stderr, "view: %s\n", lock_msg.c_str());
+  auto loop = std::make_unique<HapticLoop>(mouse, ForceShaper{opt.max_force_N, 0.05}, 1000 * 3600);
+  auto phys = std::make_unique<PhysicsThread>();
+  auto start_physics = [&]() {
+    phys = std::make_unique<PhysicsThread>();
+    phys->scene = scene.get();
+    phys->loop = loop.get();
+    phys->snapshot.resize(scene->view_organs().size());
+    phys->thread = std::thread([p = phys.get()] { p->run(); });
+  };
+  start_physics();
+  loop->start(opt.realtime);
+  const HapticStats first = loop->stats();
+  (void)first;
+
+  bool dragging = false, orbiting = false;
+  double last_x = 0, last_y = 0, grab_x = 0, grab_y = 0;
+  Eigen::Vector3f grab_point(0, 0, 0);
+  std::string status;
+  int lesson_step = -1;
+  double peak_force = 0;
+  PhysicsSettings live = physics;
+  // The panel starts from the lesson's model, else the first simulated organ's material.
+  const std::string start_model = !live.model.empty() ? live.model
+                                  : set.find(scene->name(0)) ? set.find(scene->name(0))->material.model : "nmsm";
+  int model_index = start_model == "tmsm" ? 0 : start_model == "cmsm" ? 1 : start_model == "nmsm" ? 2 : 3;
+  float young = static_cast<float>(live.young_modulus_pa > 0 ? live.young_modulus_pa : 4000.0);
+  float elastica_b = static_cast<float>(live.elastica_b >= 0 ? live.elastica_b : 0.1);
+  std::vector<std::vector<float>> draw(scene->view_organs().size());
+  int frames = 0;
+  int rebuild = 0;  // 1: recompile with the panel's parameters, 2: reset to rest (after the frame)
+  double fps = 0;
+  auto fps_t0 = Clock::now();
+
+  auto apply_step = [&](const LessonStep& s) {
+    auto vi = [&](const std::string& n) { return static_cast<size_t>(scene->view_index(n)); };
+    viewer->caption.text = s.kind == StepKind::say ? s.text : s.hint;
+    switch (s.kind) {
+      case StepKind::camera:
+        if (!s.camera.view.empty()) viewer->camera.set_view(s.camera.view);
+        if (s.camera.distance_mm > 0) viewer->camera.distance = static_cast<float>(s.camera.distance_mm);
+        break;
+      case StepKind::highlight:
+        for (auto& st : viewer->styles) st.highlight = false;
+        for (const auto& n : s.organs) viewer->styles[vi(n)].highlight = true;
+        break;
+      case StepKind::hide: for (const auto& n : s.organs) viewer->styles[vi(n)].visible = false; break;
+      case StepKind::show: for (const auto& n : s.organs) viewer->styles[vi(n)].visible = true; break;
+      case StepKind::isolate:
+        for (auto& st : viewer->styles) st.visible = false;
+        for (const auto& n : s.organs) viewer->styles[vi(n)].visible = true;
+        break;
+      case StepKind::label: for (const auto& n : s.organs) viewer->labeled[vi(n)] = true; break;
+      default: break;
+    }
+    peak_force = 0;
+  };
+
+  GLFWwindow* win = ctx->window();
+  while (!ctx->should_close()) {
+    ctx->poll_events();
+    ImGui::SetCurrentContext(viewer->imgui());
+    const ImGuiIO& io = ImGui::GetIO();
+    double mx, my;
+    glfwGetCursorPos(win, &mx, &my);
+    int ww, wh;
+    glfwGetWindowSize(win, &ww, &wh);
+    const float sx = static_cast<float>(ctx->width()) / static_cast<float>(std::max(ww, 1));
+    const float sy = static_cast<float>(ctx->height()) / static_cast<float>(std::max(wh, 1));
+    const float px = static_cast<float>(mx) * sx, py = static_cast<float>(my) * sy;
+    {
+      std::lock_guard<std::mutex> lock(phys->mutex);
+      if (!phys->snapshot.empty() && !phys->snapshot[0].empty()) draw.swap(phys->snapshot);
+    }
+    if (!draw[0].empty()) viewer->set_geometry(draw);
+    const PickHit hover = viewer->pick(px, py);
+    viewer->hovered = hover.organ;
+    if (!io.WantCaptureMouse) {
+      const bool left = glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+      const bool right = glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
+      if (left && !dragging && hover.organ >= 0 && scene->model_organ(hover.organ) >= 0) {
+        // Grasp: the patch within 10 mm of the picked point on the deformed surface.
+        const int v = hover.organ;
+        std::vector<int32_t> local;
+        const auto& P = draw[static_cast<size_t>(v)];
+        for (size_t i = 0; i < P.size() / 3; ++i)
+          if ((Eigen::Vector3f(P[3 * i], P[3 * i + 1], P[3 * i + 2]) - hover.point).norm() < 10.0f)
+            local.push_back(static_cast<int32_t>(i));
+        if (local.empty()) local.push_back(hover.nearest_vertex);
+        std::lock_guard<std::mutex> lock(phys->mutex);
+        phys->grasp_request = scene->global_vertices(v, local);
+        phys->grasp_pending = !phys->grasp_request.empty();
+        dragging = phys->grasp_pending;
+        grab_x = px;
+        grab_y = py;
+        grab_point = hover.point;
+        mouse.set({0, 0, 0}, true);
+      } else if (left && dragging) {
+        // Drag on the screen plane through the grasp point: pixels -> mm at that depth.
+        const Eigen::Matrix4f view = viewer->camera.view();
+        const Eigen::Vector3f right_v = view.block<1, 3>(0, 0).transpose();
+        const Eigen::Vector3f up_v = view.block<1, 3>(1, 0).transpose();
+        const float depth = (grab_point - viewer->camera.eye()).norm();
+        const float mm_per_px = 2.0f * depth * std::tan(0.5f * viewer->camera.fov_y_deg * 3.14159265f / 180.0f) /
+                                static_cast<float>(viewer->camera.height);
+        const Eigen::Vector3f off = (right_v * (px - static_cast<float>(grab_x)) - up_v * (py - static_cast<float>(grab_y))) * mm_per_px;
+        mouse.set({off.x() * 1e-3, off.y() * 1e-3, off.z() * 1e-3}, true);
+      } else if (!left && dragging) {
+        dragging = false;
+        mouse.set({0, 0, 0}, false);
+        std::lock_guard<std::mutex> lock(phys->mutex);
+        phys->release_pending = true;
+      }
+      if (right && orbiting) {
+        viewer->camera.yaw_deg -= static_cast<float>(mx - last_x) * 0.4f;
+        viewer->camera.pitch_deg = std::clamp(viewer->camera.pitch_deg + static_cast<float>(my - last_y) * 0.4f, -89.0f, 89.0f);
+      }
+      orbiting = right;
+      if (io.MouseWheel != 0) viewer->camera.distance *= std::pow(0.9f, io.MouseWheel);
+      // pick task: a click (press and release without drag) on an organ is the answer
+      if (lesson && lesson_step >= 0 && lesson->steps[static_cast<size_t>(lesson_step)].kind == StepKind::pick &&
+          ImGui::IsMouseClicked(ImGuiMouseButton_Left) && hover.organ >= 0) {
+        const std::string& want = lesson->steps[static_cast<size_t>(lesson_step)].organs[0];
+        const std::string got = scene->name(hover.organ);
+        viewer->caption.status = got == want ? "PASS: picked " + got : "FAIL: picked " + got + ", expected " + want;
+        viewer->caption.ok = got == want;
+      }
+    }
+    last_x = mx;
+    last_y = my;
+    viewer->lines.clear();
+    viewer->texts.clear();
+    const Vec3d f = mouse.force();
+    const float fmag = static_cast<float>(std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]));
+    if (dragging) {
+      peak_force = std::max(peak_force, static_cast<double>(fmag));
+      const Eigen::Vector3f fv(static_cast<float>(f[0]), static_cast<float>(f[1]), static_cast<float>(f[2]));
+      const Eigen::Vector3f tip = grab_point + (fmag > 0 ? Eigen::Vector3f(fv / fmag * std::max(10.0f, 20.0f * fmag)) : Eigen::Vector3f::Zero());
+      viewer->lines.push_back({grab_point, tip, {1.0f, 0.9f, 0.2f, 1.0f}});
+      char b[32];
+      std::snprintf(b, sizeof b, "%.2f N", fmag);
+      viewer->texts.push_back({tip, b});
+    }
+    if (++frames % 30 == 0) {
+      fps = 30.0 / std::chrono::duration<double>(Clock::now() - fps_t0).count();
+      fps_t0 = Clock::now();
+    }
+    viewer->render([&] {
+      ImGui::SetNextWindowPos(ImVec2(static_cast<float>(ctx->width()) - 330, 10), ImGuiCond_FirstUseEver);
+      ImGui::SetNextWindowSize(ImVec2(320, 520), ImGuiCond_FirstUseEver);
+      ImGui::Begin("SoftAtlas");
+      if (ImGui::CollapsingHeader("Organs", ImGuiTreeNodeFlags_DefaultOpen)) {
+        for (size_t v = 0; v < viewer->styles.size(); ++v) {
+          ImGui::PushID(static_cast<int>(v));
+          bool vis = viewer->styles[v].visible;
+          if (ImGui::Checkbox(scene->name(static_cast<int>(v)).c_str(), &vis)) viewer->styles[v].visible = vis;
+          ImGui::SameLine(170);
+          if (ImGui::SmallButton("isolate"))
+            for (size_t k = 0; k < viewer->styles.size(); ++k) viewer->styles[k].visible = k == v;
+          ImGui::SameLine();
+          bool lab = viewer->labeled[v];
+          if (ImGui::Checkbox("label", &lab)) viewer->labeled[v] = lab;
+          ImGui::PopID();
+        }
+        if (ImGui::Button("show all")) for (auto& s : viewer->styles) s.visible = true;
+      }
+      if (ImGui::CollapsingHeader("Physics", ImGuiTreeNodeFlags_DefaultOpen)) {
+        const char* models[] = {"tmsm", "cmsm", "nmsm", "flexion"};
+        ImGui::Combo("model", &model_index, models, 4);
+        ImGui::SliderFloat("E (Pa)", &young, 500.0f, 20000.0f, "%.0f", ImGuiSliderFlags_Logarithmic);
+        ImGui::SliderFloat("elastica b", &elastica_b, 0.0f, 1.0f);
+        bool paused = phys->paused.load();
+        if (ImGui::Checkbox("pause", &paused)) phys->paused.store(paused);
+        ImGui::SameLine();
+        if (ImGui::Button("apply (recompile)")) rebuild = 1;
+        ImGui::SameLine();
+        if (ImGui::Button("reset")) rebuild = 2;
+        ImGui::TextWrapped("%s", status.c_str());
+      }
+      if (lesson && ImGui::CollapsingHeader("Lesson", ImGuiTreeNodeFlags_DefaultOpen)) {
+        ImGui::TextWrapped("%s", lesson->title.c_str());
+        if (ImGui::Button("< prev") && lesson_step > 0) apply_step(lesson->steps[static_cast<size_t>(--lesson_step)]);
+        ImGui::SameLine();
+        if (ImGui::Button("next >") && lesson_step + 1 < static_cast<int>(lesson->steps.size()))
+          apply_step(lesson->steps[static_cast<size_t>(++lesson_step)]);
+        if (lesson_step >= 0) {
+          const LessonStep& s = lesson->steps[static_cast<size_t>(lesson_step)];
+          viewer->caption.title = "step " + std::to_string(lesson_step + 1) + ": " + to_string(s.kind);
+          ImGui::Text("step %d/%zu: %s", lesson_step + 1, lesson->steps.size(), to_string(s.kind));
+          if (s.kind == StepKind::pull) {
+            double disp;
+            {
+              std::lock_guard<std::mutex> lock(phys->mutex);
+              disp = phys->max_disp_mm;
+            }
+            ImGui::Text("pull %s: %.1f / %.1f mm, peak %.2f / %.2f N", s.pull.organ.c_str(), disp,
+                        s.pull.min_displacement_mm, peak_force, s.pull.max_force_N);
+            const bool ok = disp >= s.pull.min_displacement_mm && peak_force <= s.pull.max_force_N;
+            viewer->caption.status = ok ? "PASS" : (peak_force > s.pull.max_force_N ? "too hard" : "keep pulling");
+            viewer->caption.ok = ok;
+          }
+        }
+      }
+      if (ImGui::CollapsingHeader("Stats", ImGuiTreeNodeFlags_DefaultOpen)) {
+        double us;
+        {
+          std::lock_guard<std::mutex> lock(phys->mutex);
+          us = phys->us_per_step;
+        }
+        ImGui::Text("render %.0f fps (%s)", fps, ctx->backend());
+        ImGui::Text("physics %.3f ms/step, %d vertices", us * 1e-3, scene->model.nvert);
+        ImGui::Text("haptic loop: %s", loop->running() ? "1 kHz, running" : "stopped");
+        ImGui::Text("tool force %.2f N (limit %.1f N)", fmag, opt.max_force_N);
+      }
+      ImGui::End();
+    });
+    if (opt.frames > 0 && frames >= opt.frames) {
+      if (!opt.screenshot.empty()) viewer->save_png(opt.screenshot);  // back buffer, before swap
+      break;
+    }
+    ctx->swap();
+    if (rebuild) {
+      // Live parameters: stop the physics thread, recompile the scene (or reset it), start
+      // again; the viewer is rebuilt on the new scene, keeping the camera and styles.
+      const char* models[] = {"tmsm", "cmsm", "nmsm", "flexion"};
+      phys->stop.store(true);
+      phys->thread.join();
+      dragging = false;
+      mouse.set({0, 0, 0}, false);
+      if (rebuild == 1) {
+        live.model = models[model_index];
+        live.young_modulus_pa = young;
+        live.elastica_b = elastica_b;
+      }
+      try {
+        auto fresh = std::make_unique<AtlasScene>(set, shown, context, live);
+        const Camera cam = viewer->camera;
+        const auto styles = viewer->styles;
+        const auto labeled = viewer->labeled;
+        const Caption caption = viewer->caption;
+        viewer.reset();
+        scene.swap(fresh);
+        viewer = std::make_unique<Viewer>(*ctx, *scene);
+        viewer->camera = cam;
+        viewer->styles = styles;
+        viewer->labeled = labeled;
+        viewer->caption = caption;
+        status = rebuild == 1 ? "recompiled: " + std::to_string(scene->model.nvert) + " vertices" : "reset";
+      } catch (const std::exception& e) {
+        status = e.what();
+      }
+      draw.assign(scene->view_organs().size(), {});
+      start_physics();
+      rebuild = 0;
+    }
+  }
+  loop->stop();
+  phys->stop.store(true);
+  phys->thread.join();
+  const HapticStats st = loop->stats();
+  std::fprintf(stderr, "view: haptic loop %lld cycles, period p50 %.0f us, p99 %.0f us, max %.0f us%s%s\n",
+               static_cast<long long>(st.cycles), st.period_us_p50, st.period_us_p99, st.period_us_max,
+               st.message.empty() ? "" : "; ", st.message.c_str());
+  return 0;
+}
+
+}  // namespace softatlas::app

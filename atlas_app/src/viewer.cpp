@@ -1,0 +1,147 @@
+#include "softatlas/app/viewer.hpp"
+
+#include <imgui.h>
+#include <backends/imgui_impl_glfw.h>
+
+#include <algorithm>
+
+namespace softatlas::app {
+
+Viewer::Viewer(GlContext& context, const AtlasScene& scene)
+    : context_(context), scene_(scene), renderer_(std::make_unique<Renderer>(context)) {
+  imgui_ = ImGui::CreateContext();
+  ImGui::SetCurrentContext(imgui_);
+  ImGuiIO& io = ImGui::GetIO();
+  io.IniFilename = nullptr;  // no imgui.ini littering the working folder
+  ImGui::StyleColorsDark();
+  if (!context.headless() && context.window()) {
+    ImGui_ImplGlfw_InitForOpenGL(context.window(), true);
+    glfw_backend_ = true;
+  }
+  const size_t n = scene.view_organs().size();
+  positions_.resize(n);
+  centroids_.resize(n);
+  std::vector<const float*> ptrs;
+  for (size_t v = 0; v < n; ++v) {
+    const io::OrganEntry& o = scene.set().organs[static_cast<size_t>(scene.view_organs()[v])];
+    renderer_->add_mesh(o.mesh.faces, o.mesh.vertex_count());
+    bvh_.add_mesh(o.mesh.faces, o.mesh.vertex_count());
+    scene.positions_mm(static_cast<int>(v), positions_[v]);
+    ptrs.push_back(positions_[v].data());
+    OrganStyle s;
+    s.color = o.color;
+    s.alpha = scene.is_context(static_cast<int>(v)) ? 0.3f : 1.0f;
+    styles.push_back(s);
+    labeled.push_back(false);
+  }
+  bvh_.build(ptrs);
+  set_geometry(positions_);
+  Eigen::Vector3f lo, hi;
+  scene.bounds_mm(lo, hi);
+  renderer_->set_bounds(lo, hi);
+  camera.width = context.width();
+  camera.height = context.height();
+  frame_all();
+}
+
+Viewer::~Viewer() {
+  ImGui::SetCurrentContext(imgui_);
+  if (glfw_backend_) ImGui_ImplGlfw_Shutdown();
+  ImGui::DestroyContext(imgui_);
+}
+
+void Viewer::set_geometry(const std::vector<std::vector<float>>& positions_mm) {
+  std::vector<const float*> ptrs;
+  for (size_t v = 0; v < positions_mm.size() && v < positions_.size(); ++v) {
+    if (&positions_mm != &positions_) positions_[v] = positions_mm[v];
+    renderer_->set_positions(static_cast<int>(v), positions_[v].data());
+    Eigen::Vector3f c(0, 0, 0);
+    const size_t nv = positions_[v].size() / 3;
+    for (size_t i = 0; i < nv; ++i) c += Eigen::Map<const Eigen::Vector3f>(&positions_[v][3 * i]);
+    centroids_[v] = nv ? Eigen::Vector3f(c / static_cast<float>(nv)) : c;
+    ptrs.push_back(positions_[v].data());
+  }
+  bvh_.refit(ptrs);
+}
+
+void Viewer::set_geometry_from_scene() {
+  for (size_t v = 0; v < positions_.size(); ++v) scene_.positions_mm(static_cast<int>(v), positions_[v]);
+  set_geometry(positions_);
+}
+
+PickHit Viewer::pick(float px, float py) const {
+  Eigen::Vector3f o, d;
+  camera.ray(px, py, o, d);
+  std::vector<bool> visible;
+  for (const OrganStyle& s : styles) visible.push_back(s.visible);
+  return bvh_.intersect(o, d, visible);
+}
+
+void Viewer::frame_all() {
+  Eigen::Vector3f lo, hi;
+  scene_.bounds_mm(lo, hi);
+  camera.frame(lo, hi);
+}
+
+void Viewer::begin() {
+  ImGui::SetCurrentContext(imgui_);
+  camera.width = context_.width();
+  camera.height = context_.height();
+  ImGuiIO& io = ImGui::GetIO();
+  renderer_->prepare_imgui_fonts();
+  if (glfw_backend_) ImGui_ImplGlfw_NewFrame();
+  else {
+    io.DisplaySize = ImVec2(static_cast<float>(camera.width), static_cast<float>(camera.height));
+    io.DeltaTime = 1.0f / 60.0f;
+  }
+  ImGui::NewFrame();
+}
+
+void Viewer::end() {
+  renderer_->begin_frame(cues, camera.width, camera.height);
+  renderer_->draw_cues(camera, cues);
+  renderer_->draw_organs(camera, styles);
+  renderer_->draw_lines(camera, lines);
+  ImDrawList* fg = ImGui::GetForegroundDrawList();
+  auto label = [&](const Eigen::Vector3f& p, const std::string& text, ImU32 col) {
+    float x, y;
+    if (!camera.project(p, x, y)) return;
+    const ImVec2 size = ImGui::CalcTextSize(text.c_str());
+    const ImVec2 a(x - size.x * 0.5f - 4, y - size.y * 0.5f - 2), b(x + size.x * 0.5f + 4, y + size.y * 0.5f + 2);
+    fg->AddRectFilled(a, b, IM_COL32(0, 0, 0, 150), 3.0f);
+    fg->AddText(ImVec2(a.x + 4, a.y + 2), col, text.c_str());
+  };
+  for (size_t v = 0; v < styles.size(); ++v) {
+    if (!styles[v].visible) continue;
+    if (labeled[v] || static_cast<int>(v) == hovered)
+      label(centroids_[v], scene_.name(static_cast<int>(v)), IM_COL32(255, 255, 255, 255));
+  }
+  for (const auto& [p, text] : texts) label(p, text, IM_COL32(255, 230, 120, 255));
+  if (!caption.title.empty() || !caption.text.empty() || !caption.status.empty()) {
+    const float w = static_cast<float>(camera.width);
+    ImGui::SetNextWindowPos(ImVec2(10, 10));
+    ImGui::SetNextWindowSizeConstraints(ImVec2(std::min(520.0f, w - 20), 0), ImVec2(std::min(520.0f, w - 20), 400));
+    ImGui::SetNextWindowBgAlpha(0.7f);
+    ImGui::Begin("##caption", nullptr,
+                 ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_NoInputs | ImGuiWindowFlags_NoSavedSettings |
+                     ImGuiWindowFlags_AlwaysAutoResize);
+    if (!caption.title.empty()) {
+      ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(0.6f, 0.85f, 1.0f, 1.0f));
+      ImGui::TextWrapped("%s", caption.title.c_str());
+      ImGui::PopStyleColor();
+    }
+    if (!caption.text.empty()) ImGui::TextWrapped("%s", caption.text.c_str());
+    if (!caption.status.empty())
+      ImGui::TextColored(caption.ok ? ImVec4(0.4f, 1.0f, 0.4f, 1.0f) : ImVec4(1.0f, 0.45f, 0.4f, 1.0f), "%s",
+                         caption.status.c_str());
+    ImGui::End();
+  }
+  ImGui::Render();
+  renderer_->draw_imgui(ImGui::GetDrawData());
+}
+
+void Viewer::save_png(const std::string& path) const {
+  write_png(path, context_.width(), context_.height(), context_.read_rgba());
+}
+
+}  // namespace softatlas::app

@@ -1,0 +1,509 @@
+// `softatlas bench accuracy`: error against run time for every model and setting, measured
+// against a corotational FEM reference of the same liver (issue 7).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include "softatlas/evidence/evidence.hpp"
+#include "softatlas/evidence/svg.hpp"
+#include "softatlas/sim/error.hpp"
+#include "trajectory.hpp"
+
+namespace softatlas::evidence {
+
+namespace fem = sim::fem;
+using nlohmann::json;
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void progress(const char* fmt, const std::string& a, double b = 0.0) {
+  std::fprintf(stderr, fmt, a.c_str(), b);
+  std::fflush(stderr);
+}
+
+std::vector<int32_t> nodes_where(const fem::TetMesh& mesh, int axis, double value) {
+  std::vector<int32_t> out;
+  for (int32_t i = 0; i < mesh.nnode(); ++i)
+    if (std::abs(mesh.nodes[3 * i + axis] - value) < 1e-12) out.push_back(i);
+  return out;
+}
+
+// Consistent nodal forces of a uniform traction on the boundary faces in the plane axis = value.
+void add_traction(const fem::TetMesh& mesh, fem::Load& load, int axis, double value, const std::array<double, 3>& t) {
+  const std::vector<int32_t> faces = fem::boundary_faces(mesh);
+  for (size_t f = 0; f < faces.size() / 3; ++f) {
+    bool on = true;
+    for (int k = 0; k < 3; ++k) on = on && std::abs(mesh.nodes[3 * faces[3 * f + k] + axis] - value) < 1e-12;
+    if (!on) continue;
+    const double* a = &mesh.nodes[3 * faces[3 * f]];
+    const double* b = &mesh.nodes[3 * faces[3 * f + 1]];
+    const double* c = &mesh.nodes[3 * faces[3 * f + 2]];
+    const double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    const double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
+    const double area = 0.5 * std::sqrt(cx * cx + cy * cy + cz * cz);
+    for (int k = 0; k < 3; ++k)
+      for (int d = 0; d < 3; ++d) load.force[3 * faces[3 * f + k] + d] += t[d] * area / 3.0;
+  }
+}
+
+std::vector<int32_t> fem_support(const fem::TetMesh& mesh) { return support_vertices(mesh.nodes, kSupportFraction); }
+
+// Surface nodes of the tet mesh within the tool radius.
+std::vector<int32_t> fem_tool_nodes(const fem::TetMesh& mesh, const std::array<double, 3>& top) {
+  const std::vector<int32_t> faces = fem::boundary_faces(mesh);
+  std::vector<uint8_t> on(mesh.nnode(), 0);
+  for (int32_t n : faces) on[n] = 1;
+  std::vector<int32_t> out;
+  int32_t best = -1;
+  double bd = INFINITY;
+  for (int32_t i = 0; i < mesh.nnode(); ++i) {
+    if (!on[i]) continue;
+    double d2 = 0;
+    for (int c = 0; c < 3; ++c) d2 += (mesh.nodes[3 * i + c] - top[c]) * (mesh.nodes[3 * i + c] - top[c]);
+    if (d2 <= kToolRadius * kToolRadius) out.push_back(i);
+    if (d2 < bd) bd = d2, best = i;
+  }
+  if (out.empty()) out.push_back(best);
+  return out;
+}
+
+struct FemSolution {
+  std::vector<double> x;
+  std::array<double, 3> reaction{0, 0, 0};
+  double seconds = 0.0;
+  int iterations = 0;
+  double residual = 0.0;
+  bool converged = false;
+};
+
+FemSolution solve_reference(const fem::Model& model, const fem::TetMesh& mesh, const LoadCase& load,
+                            const std::array<double, 3>& top) {
+  FemSolution s;
+  fem::Load l = fem::make_load(model);
+  fem::fix_nodes(l, fem_support(mesh), {0, 0, 0});
+  const std::vector<int32_t> tool = fem_tool_nodes(mesh, top);
+  if (load.attach) fem::fix_nodes(l, tool, load.value);
+  else fem::add_force(l, tool, load.value);
+  s.x = model.rest;
+  fem::StaticOptions opt;
+  // Large pulls rotate elements a lot; small increments keep the approximate-tangent Newton
+  // (no derivative of R) within its convergence basin.
+  opt.load_steps = load.attach ? 10 : 1;
+  opt.max_iterations = 100;
+  opt.tolerance = 1e-6;
+  const auto t0 = std::chrono::steady_clock::now();
+  const fem::StaticReport rep = fem::solve_static(model, l, s.x, opt);
+  s.seconds = seconds_since(t0);
+  s.iterations = rep.iterations;
+  s.converged = rep.converged;
+  s.residual = rep.residual;
+  s.reaction = fem::reaction_force(model, s.x, tool);
+  return s;
+}
+
+std::vector<int> face_counts(Grid g) {
+  if (g == Grid::tiny) return {600};
+  if (g == Grid::quick) return {1000, 2000};
+  return {1000, 2000, 4000, 10000};  // 6000 and 8000 left out: the full run must fit in 30 min
+}
+
+struct Combo {
+  std::string model, integrator;
+};
+std::vector<Combo> combos(Grid g) {
+  std::vector<Combo> out;
+  const std::vector<std::string> msm = g == Grid::tiny ? std::vector<std::string>{"tmsm", "nmsm"}
+                                                       : std::vector<std::string>{"tmsm", "cmsm", "nmsm", "nmsm_p2", "flexion"};
+  const std::vector<std::string> integ = g == Grid::tiny ? std::vector<std::string>{"semi_implicit", "implicit"}
+                                                         : std::vector<std::string>{"verlet", "semi_implicit", "implicit"};
+  for (const auto& m : msm)
+    for (const auto& i : integ) out.push_back({m, i});
+  out.push_back({"tmm", "implicit"});
+  return out;
+}
+
+// Pareto front (minimise both): indices of non-dominated points, sorted by x.
+std::vector<size_t> pareto(const std::vector<double>& x, const std::vector<double>& y) {
+  std::vector<size_t> idx;
+  for (size_t i = 0; i < x.size(); ++i)
+    if (std::isfinite(x[i]) && std::isfinite(y[i]) && x[i] > 0 && y[i] > 0) idx.push_back(i);
+  std::sort(idx.begin(), idx.end(), [&](size_t a, size_t b) { return x[a] < x[b] || (x[a] == x[b] && y[a] < y[b]); });
+  std::vector<size_t> front;
+  double best = INFINITY;
+  for (size_t i : idx)
+    if (y[i] < best) {
+      front.push_back(i);
+      best = y[i];
+    }
+  return front;
+}
+
+const std::map<std::string, int>& model_colors() {
+  static const std::map<std::string, int> c = {{"tmsm", 0}, {"cmsm", 1}, {"nmsm", 2}, {"nmsm_p2", 3},
+                                               {"flexion", 4}, {"tmm", 5}, {"fem", 6}};
+  return c;
+}
+std::string integrator_marker(const std::string& i) {
+  if (i == "verlet") return "triangle";
+  if (i == "semi_implicit") return "circle";
+  if (i == "implicit") return "square";
+  return "diamond";
+}
+
+// One scatter plot of a run metric against ms per step, one series per model x integrator, the
+// Pareto front of the whole cloud drawn as a dashed line.
+std::string metric_plot(const json& runs, const std::string& metric, const std::string& label,
+                        const std::string& title, const std::string& load_filter, bool logy) {
+  svg::Plot p;
+  p.title = title;
+  p.xlabel = "ms per step (log)";
+  p.ylabel = label;
+  p.logx = true;
+  p.logy = logy;
+  std::map<std::string, svg::Series> series;
+  std::vector<double> ax, ay;
+  for (const auto& r : runs) {
+    if (!load_filter.empty() && r["load"] != load_filter) continue;
+    if (!r[metric].is_number()) continue;
+    const std::string key = r["model"].get<std::string>() + " / " + r["integrator"].get<std::string>();
+    auto& s = series[key];
+    if (s.name.empty()) {
+      s.name = key;
+      s.color = svg::color(model_colors().count(r["model"]) ? model_colors().at(r["model"]) : 9);
+      s.marker = integrator_marker(r["integrator"]);
+    }
+    const double y = std::abs(r[metric].get<double>());
+    s.x.push_back(r["ms_per_step"].get<double>());
+    s.y.push_back(y);
+    ax.push_back(r["ms_per_step"].get<double>());
+    ay.push_back(y);
+  }
+  for (auto& kv : series) p.series.push_back(kv.second);
+  svg::Series front;
+  front.name = "Pareto front";
+  front.color = "#222222";
+  front.marker = "none";
+  front.line = true;
+  front.dashed = true;
+  for (size_t i : pareto(ax, ay)) {
+    front.x.push_back(ax[i]);
+    front.y.push_back(ay[i]);
+  }
+  p.series.push_back(front);
+  return svg::render(p);
+}
+
+}  // namespace
+
+void write_file_atomic(const std::string& path, const std::string& content) {
+  const std::filesystem::path target(path);
+  const std::filesystem::path tmp = target.parent_path() / ("." + target.filename().string() + ".tmp");
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) throw InputError(tmp.string(), "cannot write (is the output folder writable?)");
+    out << content;
+    if (!out) throw InputError(tmp.string(), "write failed");
+  }
+  std::filesystem::rename(tmp, target);
+}
+
+TriMesh load_liver(const std::string& data_dir) {
+  const std::string path = data_dir + "/meshes/sofa/liver-smooth.obj";
+  if (!std::filesystem::exists(path))
+    throw InputError(path, "missing (expected the shared data folder; pass --data DIR)");
+  return normalise_organ(read_surface(path), 0.17);
+}
+
+json fem_verification(Grid grid) {
+  json out = json::array();
+  {
+    // Compressed block under a uniform pressure with symmetry-plane supports: uniaxial stress,
+    // u_z(top) = -p H / E exactly for linear tetrahedra.
+    const double lx = 0.02, ly = 0.02, lz = 0.04, E = 4000.0, nu = 0.45, p = 50.0;
+    const fem::TetMesh mesh = fem::box_mesh(lx, ly, lz, 2, 2, 4);
+    fem::Material mat;
+    mat.young_modulus_pa = E;
+    mat.poisson_ratio = nu;
+    mat.elasticity = fem::Elasticity::linear;
+    const fem::Model model = fem::compile(mesh, mat);
+    fem::Load load = fem::make_load(model);
+    for (int axis = 0; axis < 3; ++axis)
+      for (int32_t i : nodes_where(mesh, axis, 0.0)) load.dof_fixed[3 * i + axis] = 1;
+    add_traction(mesh, load, 2, lz, {0, 0, -p});
+    std::vector<double> x = model.rest;
+    fem::solve_static(model, load, x);
+    const std::vector<int32_t> top = nodes_where(mesh, 2, lz);
+    double uz = 0;
+    for (int32_t i : top) uz += x[3 * i + 2] - model.rest[3 * i + 2];
+    uz /= static_cast<double>(top.size());
+    const double analytic = -p * lz / E;
+    out.push_back({{"case", "compressed_block_linear"}, {"quantity", "top displacement u_z (m)"},
+                   {"analytic", analytic}, {"computed", uz}, {"rel_error", std::abs(uz - analytic) / std::abs(analytic)},
+                   {"tets", mesh.ntet()}});
+  }
+  // Cantilever (L/h = 10) under a tip shear load: Timoshenko tip deflection; linear tetrahedra
+  // lock in bending, so the error falls with refinement (convergence under refinement).
+  const int nmax = grid == Grid::full ? 5 : grid == Grid::quick ? 3 : 2;
+  for (int pass = 0; pass < 2; ++pass) {
+    const bool corot = pass == 1;
+    for (int n = corot ? nmax : 1; n <= nmax; ++n) {
+      const double L = 0.1, h = 0.01, E = 1e5, nu = 0.3, P = corot ? 1e-4 : 1e-3;
+      const fem::TetMesh mesh = fem::box_mesh(L, h, h, 10 * n, n, n);
+      fem::Material mat;
+      mat.young_modulus_pa = E;
+      mat.poisson_ratio = nu;
+      mat.elasticity = corot ? fem::Elasticity::corotational : fem::Elasticity::linear;
+      const fem::Model model = fem::compile(mesh, mat);
+      fem::Load load = fem::make_load(model);
+      fem::fix_nodes(load, nodes_where(mesh, 0, 0.0), {0, 0, 0});
+      add_traction(mesh, load, 0, L, {0, 0, -P / (h * h)});
+      std::vector<double> x = model.rest;
+      fem::solve_static(model, load, x);
+      const std::vector<int32_t> tip = nodes_where(mesh, 0, L);
+      double uz = 0;
+      for (int32_t i : tip) uz += x[3 * i + 2] - model.rest[3 * i + 2];
+      uz = -uz / static_cast<double>(tip.size());
+      const double I = h * h * h * h / 12.0, G = E / (2 * (1 + nu));
+      const double analytic = P * L * L * L / (3 * E * I) + P * L / (5.0 / 6.0 * G * h * h);
+      out.push_back({{"case", std::string("cantilever_") + (corot ? "corotational" : "linear") + "_n" + std::to_string(n)},
+                     {"quantity", "tip deflection (m), Timoshenko beam"},
+                     {"analytic", analytic}, {"computed", uz},
+                     {"rel_error", std::abs(uz - analytic) / analytic}, {"tets", mesh.ntet()},
+                     {"cells_through_thickness", n}});
+    }
+  }
+  return out;
+}
+
+json run_accuracy(const Options& opt) {
+  const auto t_start = std::chrono::steady_clock::now();
+  json result;
+  result["command"] = "bench accuracy";
+  result["grid"] = opt.grid == Grid::full ? "full" : opt.grid == Grid::quick ? "quick" : "tiny";
+  progress("accuracy: FEM verification%s\n", "");
+  result["fem_verification"] = fem_verification(opt.grid);
+
+  // ---- the liver, its FEM reference and its surfaces ----
+  const TriMesh source = load_liver(opt.data_dir);
+  const std::array<double, 3> top = top_point(source);
+  const double cell = opt.grid == Grid::full ? 0.009 : opt.grid == Grid::quick ? 0.014 : 0.02;
+  progress("accuracy: tetrahedralising the liver (cell %s%.3f m)\n", "", cell);
+  const fem::TetMesh tets = tetrahedralize(source, cell, 0.001);
+  fem::Material fmat;
+  fmat.young_modulus_pa = 4000.0;
+  fmat.poisson_ratio = 0.45;
+  fmat.elasticity = fem::Elasticity::corotational;
+  const fem::Model fmodel = fem::compile(tets, fmat);
+  json ref_info = {{"model", "fem corotational static"}, {"nodes", fmodel.nnode}, {"tets", fmodel.ntet},
+                   {"young_modulus_pa", fmat.young_modulus_pa}, {"poisson_ratio", fmat.poisson_ratio},
+                   {"cell_size_m", cell}, {"support", "nodes in the lowest 15% of the height (y) held"},
+                   {"tool", "surface nodes within 12 mm of the top vertex"}, {"solutions", json::array()}};
+  const std::vector<LoadCase> loads = opt.grid == Grid::tiny ? std::vector<LoadCase>{accuracy_loads(true)[1]}
+                                                             : accuracy_loads(opt.grid == Grid::quick);
+  std::vector<FemSolution> fem_ref;
+  for (const LoadCase& load : loads) {
+    progress("accuracy: FEM reference, load %s\n", load.name);
+    fem_ref.push_back(solve_reference(fmodel, tets, load, top));
+    const FemSolution& s = fem_ref.back();
+    ref_info["solutions"].push_back({{"load", load.name}, {"seconds", s.seconds}, {"newton_iterations", s.iterations},
+                                     {"converged", s.converged}, {"relative_residual", s.residual}, {"reaction_N", s.reaction}});
+  }
+  result["reference"] = ref_info;
+
+  // FEM convergence under refinement on the liver itself: the tool displacement under the
+  // first force load with coarser meshes against this reference.
+  json runs = json::array();
+  const std::vector<int> faces = face_counts(opt.grid);
+  const std::vector<int64_t> snap_steps = opt.grid == Grid::full ? std::vector<int64_t>{30, 300}
+                                                                 : std::vector<int64_t>{30, 300};
+  const int64_t max_steps = opt.grid == Grid::full ? 2000 : opt.grid == Grid::quick ? 1500 : 400;
+  const double accel_tol = 1e-6;  // paper 000: sum |a| < 1e-6
+  const double dt = 1e-3;         // 1 kHz: the haptic rate
+  for (int nf : faces) {
+    const TriMesh surface = remesh_to_faces(source, nf);
+    const std::vector<int32_t> fixed = support_vertices(surface.V, kSupportFraction);
+    const std::vector<int32_t> tool = region(surface.V, top, kToolRadius);
+    const fem::Embedding emb = fem::embed_points(fmodel, surface.V);
+    for (size_t li = 0; li < loads.size(); ++li) {
+      const LoadCase& load = loads[li];
+      // Above 2000 faces the full grid keeps the two large attachment loads (time budget: < 30 min).
+      if (opt.grid == Grid::full && nf > 2000 && load.name != "attach_30" && load.name != "pull_50mm") continue;
+      Reference ref;
+      fem::interpolate(fmodel, emb, fem_ref[li].x, ref.disp);
+      ref.reaction = fem_ref[li].reaction;
+      ref.valid = true;
+      const bool restoration = load.name == "attach_30" || (opt.grid != Grid::full && load.attach);
+      for (const Combo& c : combos(opt.grid)) {
+        // Verlet (Algorithm 1) is algebraically the semi-implicit step; above 2000 faces the full
+        // grid runs it once (as semi_implicit) to save time.
+        if (opt.grid == Grid::full && nf > 2000 && c.integrator == "verlet") continue;
+        ModelSpec spec = paper_spec(c.model, c.integrator, nf);
+        spec.dt_s = dt;
+        std::unique_ptr<Simulation> sim;
+        try {
+          sim = make_surface_simulation(surface, fixed, spec);
+        } catch (const InputError& e) {
+          std::fprintf(stderr, "accuracy: %s/%s at %d faces rejected: %s\n", c.model.c_str(), c.integrator.c_str(), nf, e.what());
+          continue;
+        }
+        const Trajectory tr = run_trajectory(*sim, surface, tool, load, ref, dt, snap_steps, max_steps, accel_tol, restoration);
+        for (size_t k = 0; k < tr.snaps.size(); ++k) {
+          const Snapshot& s = tr.snaps[k];
+          json r = {{"model", c.model}, {"integrator", c.integrator}, {"faces", surface.nface()},
+                    {"vertices", surface.nvert()}, {"load", load.name}, {"dt_s", dt}, {"iterations", s.iterations},
+                    {"converged", s.converged}, {"final", k + 1 == tr.snaps.size()}, {"ms_per_step", s.ms_per_step},
+                    {"rms_error_mm", s.rms_mm}, {"max_error_mm", s.max_mm}, {"volume_change_pct", s.volume_change_pct},
+                    {"force_error_pct", s.force_error_pct}, {"reaction_N", s.reaction}, {"finite", s.finite},
+                    {"guard_actions", s.guard_actions}, {"stable_dt_s", sim->stable_dt()}};
+          if (c.model == "nmsm" || c.model == "nmsm_p2") r["elastica_b"] = spec.elastica_b;
+          if (k + 1 == tr.snaps.size() && tr.restored_measured) {
+            r["restoration_mean_mm"] = tr.restoration_mean_mm;
+            r["restoration_sd_mm"] = tr.restoration_sd_mm;
+            r["restoration_time_ms"] = tr.restoration_time_ms;
+          }
+          runs.push_back(r);
+        }
+        const Snapshot& last = tr.snaps.back();
+        std::fprintf(stderr, "  %5d faces %-10s %-8s %-14s it %6lld  %.4f ms/step  rms %.3f mm  vol %+.2f%%  force %.1f%%\n",
+                     nf, load.name.c_str(), c.model.c_str(), c.integrator.c_str(), static_cast<long long>(last.iterations),
+                     last.ms_per_step, last.rms_mm, last.volume_change_pct, last.force_error_pct);
+      }
+    }
+  }
+  // The FEM as a model: implicit dynamics on coarser tetrahedra of the same liver, measured on
+  // its boundary against the fine reference; and the static solve itself.
+  {
+    const std::vector<double> cells = opt.grid == Grid::full ? std::vector<double>{0.028, 0.018}
+                                                             : std::vector<double>{opt.grid == Grid::tiny ? 0.035 : 0.028};
+    for (double cs : cells) {
+      const fem::TetMesh coarse = tetrahedralize(source, cs, 0.002);
+      for (size_t li = 0; li < loads.size(); ++li) {
+        const LoadCase& load = loads[li];
+        ModelSpec spec = paper_spec("fem", "implicit", 0);
+        spec.dt_s = dt;
+        spec.rayleigh_mass = 5.0;
+        spec.rayleigh_stiffness = 0.01;
+        TriMesh boundary;
+        std::vector<int32_t> bnodes;
+        auto sim = make_fem_simulation(coarse, fem_support(coarse), spec, boundary, bnodes);
+        const fem::Embedding emb = fem::embed_points(fmodel, boundary.V);
+        Reference ref;
+        fem::interpolate(fmodel, emb, fem_ref[li].x, ref.disp);
+        ref.reaction = fem_ref[li].reaction;
+        ref.valid = true;
+        const std::vector<int32_t> tool = region(boundary.V, top, kToolRadius);
+        const int64_t fem_steps = opt.grid == Grid::full ? 300 : 100;
+        const Trajectory tr = run_trajectory(*sim, boundary, tool, load, ref, dt, {30}, fem_steps, accel_tol, false);
+        for (const Snapshot& s : tr.snaps)
+          runs.push_back({{"model", "fem"}, {"integrator", "implicit"}, {"faces", boundary.nface()},
+                          {"vertices", boundary.nvert()}, {"tets", coarse.ntet()}, {"load", load.name}, {"dt_s", dt},
+                          {"iterations", s.iterations}, {"converged", s.converged}, {"final", &s == &tr.snaps.back()},
+                          {"ms_per_step", s.ms_per_step}, {"rms_error_mm", s.rms_mm}, {"max_error_mm", s.max_mm},
+                          {"volume_change_pct", s.volume_change_pct}, {"force_error_pct", s.force_error_pct},
+                          {"reaction_N", s.reaction}, {"finite", s.finite}, {"guard_actions", 0}});
+        // Static solve on the coarse mesh: one "step" is the whole equilibrium solve.
+        const fem::Model cmodel = fem::compile(coarse, fmat);
+        const FemSolution cs_sol = solve_reference(cmodel, coarse, load, top);
+        std::vector<double> bx(boundary.V.size());
+        for (size_t i = 0; i < bnodes.size(); ++i)
+          for (int c = 0; c < 3; ++c) bx[3 * i + c] = cs_sol.x[3 * bnodes[i] + c];
+        double rms = 0, mx = 0;
+        position_error_mm(boundary.V, bx, ref.disp, rms, mx);
+        double force_err = 0.0;
+        if (load.attach) {
+          const std::array<double, 3> d = {cs_sol.reaction[0] - ref.reaction[0], cs_sol.reaction[1] - ref.reaction[1],
+                                           cs_sol.reaction[2] - ref.reaction[2]};
+          force_err = 100.0 * norm3(d) / std::max(norm3(ref.reaction), 1e-300);
+        } else {
+          const std::array<double, 3> d = {cs_sol.reaction[0] + load.value[0], cs_sol.reaction[1] + load.value[1],
+                                           cs_sol.reaction[2] + load.value[2]};
+          force_err = 100.0 * norm3(d) / norm3(load.value);
+        }
+        const double v0 = fem::mesh_volume(coarse, coarse.nodes), v1 = fem::mesh_volume(coarse, cs_sol.x);
+        runs.push_back({{"model", "fem"}, {"integrator", "static"}, {"faces", boundary.nface()},
+                        {"vertices", boundary.nvert()}, {"tets", coarse.ntet()}, {"load", load.name}, {"dt_s", 0.0},
+                        {"iterations", cs_sol.iterations}, {"converged", cs_sol.converged}, {"final", true},
+                        {"ms_per_step", 1e3 * cs_sol.seconds}, {"rms_error_mm", rms}, {"max_error_mm", mx},
+                        {"volume_change_pct", 100.0 * (v1 - v0) / v0}, {"force_error_pct", force_err},
+                        {"reaction_N", cs_sol.reaction}, {"finite", true}, {"guard_actions", 0}});
+        std::fprintf(stderr, "  fem %d tets %-10s static %.1f ms rms %.3f mm\n", coarse.ntet(), load.name.c_str(),
+                     1e3 * cs_sol.seconds, rms);
+      }
+    }
+  }
+  // Pareto flags per load, on (ms_per_step, rms_error_mm).
+  std::map<std::string, std::vector<size_t>> by_load;
+  for (size_t i = 0; i < runs.size(); ++i) by_load[runs[i]["load"]].push_back(i);
+  for (auto& kv : by_load) {
+    std::vector<double> x, y;
+    for (size_t i : kv.second) {
+      x.push_back(runs[i]["ms_per_step"].get<double>());
+      y.push_back(runs[i]["rms_error_mm"].get<double>());
+    }
+    for (size_t i : kv.second) runs[i]["pareto"] = false;
+    for (size_t j : pareto(x, y)) runs[kv.second[j]]["pareto"] = true;
+  }
+  result["runs"] = runs;
+
+  if (opt.fit && opt.grid != Grid::tiny) {
+    std::vector<std::vector<double>> rx;
+    std::vector<std::array<double, 3>> rr;
+    for (const auto& s : fem_ref) rx.push_back(s.x), rr.push_back(s.reaction);
+    result["fitting"] = fit_parameters(opt, source, fmodel, loads, rx, rr);
+  }
+  if (opt.paper_tables && opt.grid != Grid::tiny) result["paper_tables"] = paper_tables(opt, source);
+
+  // ---- plots ----
+  const std::string main_load = opt.grid == Grid::tiny ? loads[0].name : "attach_30";
+  const std::string load_pick = std::any_of(loads.begin(), loads.end(), [&](const LoadCase& l) { return l.name == main_load; })
+                                    ? main_load : loads[0].name;
+  std::vector<std::string> plots;
+  auto plot = [&](const std::string& file, const std::string& metric, const std::string& label, const std::string& title,
+                  const std::string& load, bool logy) {
+    write_file_atomic(opt.out_dir + "/" + file, metric_plot(runs, metric, label, title, load, logy));
+    plots.push_back(file);
+  };
+  plot("rms_error_vs_time.svg", "rms_error_mm", "RMS position error vs FEM (mm, log)",
+       "RMS error against run time, load " + load_pick, load_pick, true);
+  plot("max_error_vs_time.svg", "max_error_mm", "max position error vs FEM (mm, log)",
+       "Max error against run time, load " + load_pick, load_pick, true);
+  plot("volume_change_vs_time.svg", "volume_change_pct", "|volume change| (%, log)",
+       "Volume change against run time, load " + load_pick, load_pick, true);
+  plot("force_error_vs_time.svg", "force_error_pct", "feedback force error (%, log)",
+       "Feedback-force error against run time, load " + load_pick, load_pick, true);
+  plot("restoration_vs_time.svg", "restoration_mean_mm", "mean restoration error after release (mm, log)",
+       "Shape restoration (paper 003 Table 1) against run time", "", true);
+  plot("rms_error_vs_time_all_loads.svg", "rms_error_mm", "RMS position error vs FEM (mm, log)",
+       "RMS error against run time, all loads", "", true);
+  {
+    svg::Plot p;
+    p.title = "FEM verification: cantilever tip deflection (linear tetrahedra)";
+    p.xlabel = "tetrahedra (log)";
+    p.ylabel = "relative error vs Timoshenko (log)";
+    p.logx = p.logy = true;
+    svg::Series s;
+    s.name = "linear";
+    s.line = true;
+    for (const auto& v : result["fem_verification"])
+      if (v["case"].get<std::string>().rfind("cantilever_linear", 0) == 0) {
+        s.x.push_back(v["tets"].get<double>());
+        s.y.push_back(v["rel_error"].get<double>());
+      }
+    p.series.push_back(s);
+    write_file_atomic(opt.out_dir + "/fem_convergence.svg", svg::render(p));
+    plots.push_back("fem_convergence.svg");
+  }
+  result["plots"] = plots;
+  result["seconds"] = seconds_since(t_start);
+  return result;
+}
+
+}  // namespace softatlas::evidence

@@ -1,0 +1,35 @@
+# Warnings, tuning and sanitizers shared by every SoftAtlas target.
+add_library(softatlas_options INTERFACE)
+target_compile_options(softatlas_options INTERFACE
+  $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wno-unused-parameter>)
+if(SOFTATLAS_NATIVE)
+  include(CheckCXXCompilerFlag)
+  check_cxx_compiler_flag(-march=native SOFTATLAS_HAS_MARCH_NATIVE)
+  if(SOFTATLAS_HAS_MARCH_NATIVE)
+    target_compile_options(softatlas_options INTERFACE -march=native)
+  endif()
+endif()
+if(SOFTATLAS_SANITIZE)
+  target_compile_options(softatlas_options INTERFACE
+    -fsanitize=${SOFTATLAS_SANITIZE} -fno-omit-frame-pointer -fno-sanitize-recover=all)
+  target_link_options(softatlas_options INTERFACE -fsanitize=${SOFTATLAS_SANITIZE})
+endif()
+
+# softatlas_add_test(NAME sources... LIBS libs... [LABELS l...]): one GoogleTest executable,
+# registered test by test (gtest_discover_tests), with the shared data folder as a definition.
+include(GoogleTest)
+function(softatlas_add_test name)
+  cmake_parse_arguments(T "" "TIMEOUT" "SOURCES;LIBS;LABELS" ${ARGN})
+  add_executable(${name} ${T_SOURCES})
+  target_link_libraries(${name} PRIVATE ${T_LIBS} GTest::gtest GTest::gtest_main softatlas_options)
+  target_compile_definitions(${name} PRIVATE
+    SOFTATLAS_SHARED_DATA="${SOFTATLAS_SHARED_DATA}"
+    SOFTATLAS_SOURCE_DIR="${SOFTATLAS_SOURCE_DIR}"
+    SOFTATLAS_BINARY_DIR="${CMAKE_BINARY_DIR}")
+  if(NOT T_TIMEOUT)
+    set(T_TIMEOUT 600)
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60
+    PROPERTIES LABELS "${T_LABELS}" TIMEOUT ${T_TIMEOUT}
+    WORKING_DIRECTORY ${CMAKE_BINARY_DIR})
+endfunction()

@@ -1,0 +1,326 @@
+// atlas.yaml + organs/*.ply + connections.csv (docs/organ-set.md).
+#include "softatlas/io/organ_set.hpp"
+
+#include <yaml-cpp/yaml.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <set>
+#include <sstream>
+
+#include "softatlas/sim/error.hpp"
+
+namespace softatlas::io {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string at(const std::string& file, const YAML::Node& node) {
+  const YAML::Mark mk = node.Mark();
+  if (mk.line < 0) return file;
+  return file + ":" + std::to_string(mk.line + 1) + ":" + std::to_string(mk.column + 1);
+}
+
+void check_keys(const std::string& file, const YAML::Node& map, const std::set<std::string>& allowed,
+                const std::string& what) {
+  if (!map.IsMap()) throw InputError(at(file, map), what + ": expected a map");
+  for (const auto& kv : map) {
+    const std::string key = kv.first.as<std::string>();
+    if (!allowed.count(key)) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      throw InputError(at(file, kv.first), "unknown key '" + key + "' in " + what + " (expected one of: " + list + ")");
+    }
+  }
+}
+
+template <typename T>
+T get(const std::string& file, const YAML::Node& node, const char* expected) {
+  try {
+    return node.as<T>();
+  } catch (const YAML::Exception&) {
+    throw InputError(at(file, node), std::string("expected ") + expected);
+  }
+}
+
+double get_number(const std::string& file, const YAML::Node& node, const std::string& field) {
+  const double v = get<double>(file, node, ("a number for '" + field + "'").c_str());
+  if (!std::isfinite(v)) throw InputError(at(file, node), "'" + field + "' must be finite");
+  return v;
+}
+
+void read_material(const std::string& file, const YAML::Node& node, MaterialSpec& m) {
+  check_keys(file, node,
+             {"model", "young_modulus_pa", "thickness_m", "density_kg_m3", "damping_scale",
+              "elastica_a", "elastica_b", "elastica_p", "tau_s", "tau_c", "flexion_stiffness",
+              "volume_stiffness"},
+             "material");
+  if (node["model"]) {
+    m.model = get<std::string>(file, node["model"], "a model name");
+    if (m.model != "tmsm" && m.model != "cmsm" && m.model != "nmsm" && m.model != "flexion")
+      throw InputError(at(file, node["model"]),
+                       "unknown model '" + m.model + "' (expected tmsm, cmsm, nmsm or flexion)");
+  }
+  auto num = [&](const char* key, double& out, double lo, bool strict) {
+    if (!node[key]) return;
+    out = get_number(file, node[key], key);
+    if (strict ? !(out > lo) : !(out >= lo))
+      throw InputError(at(file, node[key]), std::string("'") + key + "' must be " +
+                                                (strict ? "> " : ">= ") + std::to_string(lo));
+  };
+  num("young_modulus_pa", m.young_modulus_pa, 0.0, false);
+  num("thickness_m", m.thickness_m, 0.0, true);
+  num("density_kg_m3", m.density_kg_m3, 0.0, true);
+  num("damping_scale", m.damping_scale, 0.0, false);
+  num("elastica_a", m.elastica_a, 0.0, true);
+  num("elastica_b", m.elastica_b, 0.0, false);
+  num("tau_s", m.tau_s, -1.0, false);
+  num("tau_c", m.tau_c, -1.0, false);
+  num("flexion_stiffness", m.flexion_stiffness, 0.0, false);
+  num("volume_stiffness", m.volume_stiffness, 0.0, false);
+  if (node["elastica_p"]) {
+    m.elastica_p = get<int>(file, node["elastica_p"], "an integer p (1 or 2)");
+    if (m.elastica_p != 1 && m.elastica_p != 2)
+      throw InputError(at(file, node["elastica_p"]), "elastica_p must be 1 or 2");
+  }
+}
+
+std::string yaml_escape(const std::string& s) {
+  YAML::Emitter e;
+  e << s;
+  return e.c_str();
+}
+
+}  // namespace
+
+const OrganEntry* OrganSet::find(const std::string& name) const {
+  for (const OrganEntry& o : organs)
+    if (o.name == name) return &o;
+  return nullptr;
+}
+
+int OrganSet::index_of(const std::string& name) const {
+  for (size_t i = 0; i < organs.size(); ++i)
+    if (organs[i].name == name) return static_cast<int>(i);
+  return -1;
+}
+
+std::array<float, 3> default_organ_color(const std::string& name) {
+  struct Entry { const char* key; std::array<float, 3> rgb; };
+  static const Entry table[] = {
+      {"liver", {0.62f, 0.24f, 0.19f}},       {"spleen", {0.55f, 0.18f, 0.32f}},
+      {"kidney", {0.72f, 0.38f, 0.27f}},      {"gallbladder", {0.35f, 0.55f, 0.25f}},
+      {"stomach", {0.88f, 0.66f, 0.55f}},     {"pancreas", {0.93f, 0.78f, 0.45f}},
+      {"lung", {0.95f, 0.72f, 0.72f}},        {"heart", {0.78f, 0.16f, 0.16f}},
+      {"aorta", {0.86f, 0.12f, 0.12f}},       {"pulmonary_artery", {0.30f, 0.35f, 0.80f}},
+      {"vena_cava", {0.25f, 0.35f, 0.78f}},   {"portal_vein", {0.35f, 0.40f, 0.85f}},
+      {"trachea", {0.75f, 0.85f, 0.90f}},     {"diaphragm", {0.80f, 0.55f, 0.50f}},
+      {"colon", {0.80f, 0.62f, 0.45f}},       {"esophagus", {0.85f, 0.60f, 0.55f}},
+      {"adrenal", {0.90f, 0.70f, 0.30f}},     {"duodenum", {0.85f, 0.62f, 0.48f}},
+      {"bladder", {0.85f, 0.80f, 0.45f}},     {"vertebra", {0.92f, 0.90f, 0.82f}},
+      {"rib", {0.92f, 0.90f, 0.82f}},
+  };
+  for (const Entry& e : table)
+    if (name.find(e.key) != std::string::npos) return e.rgb;
+  return {0.7f, 0.7f, 0.7f};
+}
+
+std::string format_connections_csv(const std::vector<Connection>& connections) {
+  std::ostringstream os;
+  os.precision(17);
+  os << "organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness\n";
+  for (const Connection& c : connections)
+    os << c.organ_a << ',' << c.vertex_a << ',' << c.organ_b << ',' << c.vertex_b << ','
+       << c.rest_length_mm << ',' << c.stiffness << '\n';
+  return os.str();
+}
+
+std::vector<Connection> parse_connections_csv(const std::string& text, const std::string& path) {
+  std::vector<Connection> out;
+  std::istringstream in(text);
+  std::string line;
+  long line_no = 0;
+  while (std::getline(in, line)) {
+    ++line_no;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line_no == 1) {
+      if (line.rfind("organ_a", 0) != 0)
+        throw InputError(path + ":1", "expected the header 'organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness'");
+      continue;
+    }
+    if (line.empty()) continue;
+    std::vector<std::string> f;
+    std::istringstream ls(line);
+    std::string cell;
+    while (std::getline(ls, cell, ',')) f.push_back(cell);
+    const std::string where = path + ":" + std::to_string(line_no);
+    if (f.size() != 6) throw InputError(where, "expected 6 comma-separated fields, got " + std::to_string(f.size()));
+    Connection c;
+    c.organ_a = f[0];
+    c.organ_b = f[2];
+    try {
+      size_t used = 0;
+      c.vertex_a = std::stoi(f[1], &used);
+      c.vertex_b = std::stoi(f[3], &used);
+      c.rest_length_mm = std::stod(f[4]);
+      c.stiffness = std::stod(f[5]);
+    } catch (const std::exception&) {
+      throw InputError(where, "expected integers for vertex_a/vertex_b and numbers for rest_length_mm/stiffness");
+    }
+    if (!std::isfinite(c.rest_length_mm) || c.rest_length_mm < 0)
+      throw InputError(where, "rest_length_mm must be a finite value >= 0");
+    if (!std::isfinite(c.stiffness) || c.stiffness < 0)
+      throw InputError(where, "stiffness must be a finite value >= 0");
+    out.push_back(c);
+  }
+  if (line_no == 0) throw InputError(path, "empty file: expected a header line");
+  return out;
+}
+
+OrganSet read_organ_set(const std::string& folder) {
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) throw InputError(folder, "not an organ-set folder");
+  const std::string file = (fs::path(folder) / "atlas.yaml").string();
+  if (!fs::exists(file, ec)) throw InputError(file, "missing: an organ set needs atlas.yaml");
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(file);
+  } catch (const YAML::ParserException& e) {
+    throw InputError(file + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1), e.msg);
+  } catch (const YAML::Exception& e) {
+    throw InputError(file, e.what());
+  }
+  check_keys(file, root,
+             {"softatlas_organ_set", "units", "space", "organs", "connections", "provenance", "quality"},
+             "atlas.yaml");
+  OrganSet set;
+  set.folder = folder;
+  if (root["units"]) {
+    set.units = get<std::string>(file, root["units"], "a unit name");
+    if (set.units != "mm") throw InputError(at(file, root["units"]), "units must be 'mm'");
+  }
+  if (root["space"]) set.space = get<std::string>(file, root["space"], "a space name (RAS)");
+  if (!root["organs"] || !root["organs"].IsSequence() || root["organs"].size() == 0)
+    throw InputError(at(file, root), "'organs' must be a non-empty list");
+  for (const YAML::Node& on : root["organs"]) {
+    check_keys(file, on, {"name", "label", "fma", "color", "mesh", "face_budget", "material", "fixed_vertices"},
+               "organ");
+    OrganEntry o;
+    if (!on["name"]) throw InputError(at(file, on), "organ without 'name'");
+    o.name = get<std::string>(file, on["name"], "an organ name");
+    if (set.find(o.name)) throw InputError(at(file, on["name"]), "duplicate organ '" + o.name + "'");
+    if (on["label"]) o.label = get<int>(file, on["label"], "an integer label id");
+    if (on["fma"]) o.fma = get<std::string>(file, on["fma"], "an FMA id");
+    o.color = default_organ_color(o.name);
+    if (on["color"]) {
+      const YAML::Node& c = on["color"];
+      if (!c.IsSequence() || c.size() != 3) throw InputError(at(file, c), "color: expected [r, g, b] in 0..1");
+      for (int k = 0; k < 3; ++k) {
+        o.color[k] = static_cast<float>(get_number(file, c[k], "color"));
+        if (o.color[k] < 0 || o.color[k] > 1) throw InputError(at(file, c[k]), "color components must be in 0..1");
+      }
+    }
+    if (!on["mesh"]) throw InputError(at(file, on), "organ '" + o.name + "' has no 'mesh'");
+    o.mesh_file = get<std::string>(file, on["mesh"], "a mesh path");
+    if (on["face_budget"]) o.face_budget = get<int>(file, on["face_budget"], "an integer face budget");
+    if (on["material"]) read_material(file, on["material"], o.material);
+    const std::string mesh_path = (fs::path(folder) / o.mesh_file).string();
+    o.mesh = read_mesh(mesh_path);
+    if (on["fixed_vertices"]) {
+      const YAML::Node& fv = on["fixed_vertices"];
+      if (!fv.IsSequence()) throw InputError(at(file, fv), "fixed_vertices: expected a list of vertex indices");
+      for (const YAML::Node& v : fv) {
+        const int idx = get<int>(file, v, "an integer vertex index");
+        if (idx < 0 || static_cast<size_t>(idx) >= o.mesh.vertex_count())
+          throw InputError(at(file, v), "fixed vertex " + std::to_string(idx) + " outside 0.." +
+                                            std::to_string(o.mesh.vertex_count() - 1) + " of " + mesh_path);
+        o.fixed_vertices.push_back(idx);
+      }
+    }
+    set.organs.push_back(std::move(o));
+  }
+  if (root["connections"]) {
+    set.connections_file = get<std::string>(file, root["connections"], "a file name");
+    const std::string cpath = (fs::path(folder) / set.connections_file).string();
+    set.connections = parse_connections_csv(read_text_file(cpath), cpath);
+    long row = 1;
+    for (const Connection& c : set.connections) {
+      ++row;
+      const std::string where = cpath + ":" + std::to_string(row);
+      const OrganEntry* a = set.find(c.organ_a);
+      const OrganEntry* b = set.find(c.organ_b);
+      if (!a) throw InputError(where, "organ '" + c.organ_a + "' is not in atlas.yaml");
+      if (!b) throw InputError(where, "organ '" + c.organ_b + "' is not in atlas.yaml");
+      if (c.vertex_a < 0 || static_cast<size_t>(c.vertex_a) >= a->mesh.vertex_count())
+        throw InputError(where, "vertex_a " + std::to_string(c.vertex_a) + " outside organ '" + c.organ_a + "'");
+      if (c.vertex_b < 0 || static_cast<size_t>(c.vertex_b) >= b->mesh.vertex_count())
+        throw InputError(where, "vertex_b " + std::to_string(c.vertex_b) + " outside organ '" + c.organ_b + "'");
+    }
+  }
+  if (root["provenance"] && root["provenance"].IsMap())
+    for (const auto& kv : root["provenance"])
+      set.provenance[kv.first.as<std::string>()] =
+          kv.second.IsScalar() ? kv.second.as<std::string>() : YAML::Dump(kv.second);
+  return set;
+}
+
+void write_organ_set(const OrganSet& set, const std::string& folder,
+                     const std::map<std::string, std::string>& extra_files, bool overwrite) {
+  std::error_code ec;
+  const fs::path target = fs::absolute(folder);
+  if (fs::exists(target, ec) && !overwrite)
+    throw InputError(folder, "output folder exists (refusing to overwrite; remove it or choose another)");
+  const fs::path parent = target.parent_path();
+  if (!fs::is_directory(parent, ec)) fs::create_directories(parent, ec);
+  const fs::path tmp = parent / ("." + target.filename().string() + ".partial." + std::to_string(::getpid()));
+  fs::remove_all(tmp, ec);
+  try {
+    fs::create_directories(tmp / "organs");
+    std::ostringstream y;
+    y << "# SoftAtlas organ set (docs/organ-set.md)\n";
+    y << "softatlas_organ_set: 1\nunits: " << set.units << "\nspace: " << set.space << "\n";
+    y << "organs:\n";
+    for (const OrganEntry& o : set.organs) {
+      const std::string mesh_file = o.mesh_file.empty() ? "organs/" + o.name + ".ply" : o.mesh_file;
+      y << "  - name: " << yaml_escape(o.name) << "\n";
+      if (o.label) y << "    label: " << o.label << "\n";
+      if (!o.fma.empty()) y << "    fma: " << yaml_escape(o.fma) << "\n";
+      y << "    color: [" << o.color[0] << ", " << o.color[1] << ", " << o.color[2] << "]\n";
+      y << "    mesh: " << yaml_escape(mesh_file) << "\n";
+      if (o.face_budget) y << "    face_budget: " << o.face_budget << "\n";
+      const MaterialSpec& m = o.material;
+      y << "    material: {model: " << m.model << ", young_modulus_pa: " << m.young_modulus_pa
+        << ", thickness_m: " << m.thickness_m << ", density_kg_m3: " << m.density_kg_m3
+        << ", damping_scale: " << m.damping_scale << ", elastica_a: " << m.elastica_a
+        << ", elastica_b: " << m.elastica_b << ", elastica_p: " << m.elastica_p
+        << ", tau_s: " << m.tau_s << ", tau_c: " << m.tau_c
+        << ", flexion_stiffness: " << m.flexion_stiffness
+        << ", volume_stiffness: " << m.volume_stiffness << "}\n";
+      if (!o.fixed_vertices.empty()) {
+        y << "    fixed_vertices: [";
+        for (size_t i = 0; i < o.fixed_vertices.size(); ++i) y << (i ? ", " : "") << o.fixed_vertices[i];
+        y << "]\n";
+      }
+      write_ply(o.mesh, (tmp / mesh_file).string());
+    }
+    y << "connections: " << set.connections_file << "\n";
+    if (!set.provenance.empty()) {
+      y << "provenance:\n";
+      for (const auto& [k, v] : set.provenance) y << "  " << yaml_escape(k) << ": " << yaml_escape(v) << "\n";
+    }
+    write_file_atomic((tmp / "atlas.yaml").string(), y.str());
+    write_file_atomic((tmp / set.connections_file).string(), format_connections_csv(set.connections));
+    for (const auto& [name, content] : extra_files) {
+      fs::create_directories((tmp / name).parent_path());
+      write_file_atomic((tmp / name).string(), content);
+    }
+    if (overwrite && fs::exists(target, ec)) fs::remove_all(target, ec);
+    fs::rename(tmp, target);
+  } catch (...) {
+    fs::remove_all(tmp, ec);
+    throw;
+  }
+}
+
+}  // namespace softatlas::io

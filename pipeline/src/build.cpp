@@ -1,0 +1,490 @@
+// The whole pipeline, stage by stage, with progress on stderr:
+//   read -> (segment | import labels | read meshes) -> surface -> repair+remesh -> connect -> write
+// Every input is validated before anything is written; the organ set is written atomically by
+// io::write_organ_set (temporary folder, then rename), so a failed build leaves nothing behind.
+#include "softatlas/pipeline/build.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <set>
+
+#include "softatlas/io/organ_set.hpp"
+#include "softatlas/pipeline/label_table.hpp"
+#include "softatlas/pipeline/topology.hpp"
+#include "softatlas/sim/error.hpp"
+#include "softatlas/sim/geometry.hpp"
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+namespace softatlas::pipeline {
+
+void StageTimes::add(const std::string& stage, double s) {
+  for (auto& [name, t] : seconds)
+    if (name == stage) {
+      t += s;
+      return;
+    }
+  seconds.emplace_back(stage, s);
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+struct Progress {
+  bool quiet;
+  void operator()(const char* fmt, const std::string& a = "", const std::string& b = "") const {
+    if (quiet) return;
+    std::fprintf(stderr, "[softatlas build] ");
+    std::fprintf(stderr, fmt, a.c_str(), b.c_str());
+    std::fprintf(stderr, "\n");
+  }
+};
+
+std::string fmt(double x, int digits = 3) {
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.*g", digits, x);
+  return buf;
+}
+
+// A loaded label source with the ids present in it.
+struct LoadedLabels {
+  LabelSource source;
+  Volume volume;
+  std::map<int, size_t> counts;  // label value -> voxels (0 excluded)
+};
+
+bool boxes_overlap(const std::array<double, 6>& a, const std::array<double, 6>& b, double pad) {
+  for (int d = 0; d < 3; ++d)
+    if (a[d] > b[d + 3] + pad || b[d] > a[d + 3] + pad) return false;
+  return true;
+}
+
+// One organ to build and where it comes from.
+struct OrganJob {
+  std::string name;
+  int label = 0;
+  int source = -1;            // index into labels (or -1 for meshes/seeds)
+  std::vector<int> values;    // label values in that source
+  std::string mesh_path;      // mesh mode
+  int budget = 0;
+};
+
+std::string organ_from_mesh_path(const std::string& path) {
+  const std::string stem = fs::path(path).stem().string();
+  std::smatch m;
+  if (std::regex_search(stem, m, std::regex("FMA_?([0-9]+)"))) {
+    const std::string name = name_for_fma("FMA" + m[1].str());
+    if (!name.empty()) return name;
+  }
+  std::string low = stem;
+  for (char& c : low) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (label_id(low) > 0) return low;
+  throw InputError(path, "cannot tell which organ this mesh is; name it as ORGAN=FILE "
+                         "(TotalSegmentator names, e.g. liver=" + fs::path(path).filename().string() + ")");
+}
+
+}  // namespace
+
+void apply_build_config(const std::string& path, BuildOptions* o) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw InputError(path, "cannot open the build config");
+  } catch (const YAML::Exception& e) {
+    throw InputError(path + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1),
+                     e.msg);
+  }
+  if (!root.IsMap()) throw InputError(path, "expected a YAML map of build settings");
+  auto where = [&](const YAML::Node& n, const std::string& key) {
+    return path + ":" + std::to_string(n.Mark().line + 1) + ":" + std::to_string(n.Mark().column + 1) + ": " + key;
+  };
+  auto num = [&](const YAML::Node& n, const std::string& key) {
+    try {
+      return n.as<double>();
+    } catch (const YAML::Exception&) {
+      throw InputError(where(n, key), "expected a number");
+    }
+  };
+  for (const auto& kv : root) {
+    const std::string key = kv.first.as<std::string>();
+    const YAML::Node& v = kv.second;
+    if (key == "organs") {
+      if (!v.IsSequence()) throw InputError(where(v, key), "expected a list of organ names");
+      for (const auto& n : v) o->organs.push_back(n.as<std::string>());
+    } else if (key == "budget" || key == "budgets") {
+      if (!v.IsMap()) throw InputError(where(v, key), "expected a map organ: faces");
+      for (const auto& b : v) o->budgets[b.first.as<std::string>()] = static_cast<int>(num(b.second, key));
+    } else if (key == "smoothing_iterations") {
+      o->surface.smoothing_iterations = static_cast<int>(num(v, key));
+    } else if (key == "smoothing_passband") {
+      o->surface.smoothing_passband = num(v, key);
+    } else if (key == "speck_share") {
+      o->surface.speck_share = num(v, key);
+    } else if (key == "remesh_iterations") {
+      o->remesh.remesh_iterations = static_cast<int>(num(v, key));
+    } else if (key == "wrap_alpha_mm") {
+      o->remesh.wrap_alpha_mm = num(v, key);
+    } else if (key == "connect_distance_mm") {
+      o->connect.distance_mm = num(v, key);
+    } else if (key == "connect_spacing_mm") {
+      o->connect.spacing_mm = num(v, key);
+    } else if (key == "connect_stiffness") {
+      o->connect.stiffness = num(v, key);
+    } else if (key == "connect_pairs") {
+      if (!v.IsSequence()) throw InputError(where(v, key), "expected a list of [organ_a, organ_b]");
+      o->connect.pairs.clear();
+      for (const auto& p : v) {
+        if (!p.IsSequence() || p.size() != 2) throw InputError(where(p, key), "expected [organ_a, organ_b]");
+        o->connect.pairs.emplace_back(p[0].as<std::string>(), p[1].as<std::string>());
+      }
+    } else {
+      throw InputError(where(kv.first, key),
+                       "unknown key (expected organs, budget, smoothing_iterations, smoothing_passband, "
+                       "speck_share, remesh_iterations, wrap_alpha_mm, connect_distance_mm, "
+                       "connect_spacing_mm, connect_stiffness, connect_pairs)");
+    }
+  }
+}
+
+BuildResult build_organ_set(const BuildOptions& o) {
+  const Progress say{o.quiet};
+  BuildResult result;
+  result.output = o.output;
+  if (o.output.empty()) throw InputError("-o", "an output folder is required");
+  if (fs::exists(o.output) && !o.overwrite)
+    throw InputError(o.output, "the output folder already exists (choose a new folder)");
+  const bool mesh_mode = !o.meshes.empty();
+  if (!mesh_mode && o.ct_path.empty()) throw InputError("build", "a CT volume (or --mesh FILE...) is required");
+  if (!mesh_mode && o.labels.empty() && o.seeds_path.empty())
+    throw InputError(o.ct_path, "give --labels LABELS or --seeds SEEDS.yaml");
+  for (const auto& [name, b] : o.budgets)
+    if (b < 4)
+      throw InputError("--budget " + name, "face budget " + std::to_string(b) +
+                                               " is below what a closed surface can have (at least 4 faces)");
+
+  json provenance_params;
+  std::map<std::string, std::string> provenance;
+  provenance["tool"] = std::string("softatlas ") + SOFTATLAS_VERSION;
+
+  // ---- stage 1: read ----
+  auto t0 = Clock::now();
+  Volume ct;
+  std::vector<LoadedLabels> labels;
+  std::vector<OrganJob> jobs;
+  if (!mesh_mode) {
+    say("read: CT %s", o.ct_path);
+    ct = read_volume(o.ct_path);
+    provenance["ct"] = o.ct_path;
+    provenance["ct_sha256"] = sha256_file(o.ct_path);
+    const auto ct_box = ct.world_bounds();
+    for (const LabelSource& src : o.labels) {
+      say("read: labels %s", src.path);
+      LoadedLabels l;
+      l.source = src;
+      l.volume = read_volume(src.path);
+      if (!boxes_overlap(ct_box, l.volume.world_bounds(), 0.5 * std::cbrt(ct.voxel_volume_mm3())))
+        throw InputError(src.path, "the label map's grid does not overlap the CT " + o.ct_path +
+                                       " in world coordinates");
+      for (float x : l.volume.values) {
+        const long v = std::lround(x);
+        if (v != 0) ++l.counts[static_cast<int>(v)];
+      }
+      if (l.counts.empty()) throw InputError(src.path, "the label map has no labels (every voxel is 0)");
+      provenance["labels:" + src.path] = sha256_file(src.path);
+      labels.push_back(std::move(l));
+    }
+  }
+  result.times.add("read", since(t0));
+
+  // ---- stage 2: segment (seeds) ----
+  if (!mesh_mode && !o.seeds_path.empty()) {
+    t0 = Clock::now();
+    say("segment: seeded region growing from %s", o.seeds_path);
+    const Seeds seeds = read_seeds(o.seeds_path);
+    LoadedLabels l;
+    l.source = {o.seeds_path, ""};
+    l.volume = segment_seeded(ct, seeds, o.segment, o.seeds_path);
+    for (float x : l.volume.values) {
+      const long v = std::lround(x);
+      if (v != 0) ++l.counts[static_cast<int>(v)];
+    }
+    provenance["seeds:" + o.seeds_path] = sha256_file(o.seeds_path);
+    // Every seeded organ must have grown.
+    for (const auto& [name, pts] : seeds.organs)
+      if (!l.counts.count(label_id(name)))
+        throw InputError(o.seeds_path + ": " + name, "the seeded segmentation produced no voxels");
+    labels.push_back(std::move(l));
+    result.times.add("segment", since(t0));
+  }
+
+  // ---- which organs, from where ----
+  if (mesh_mode) {
+    std::set<std::string> seen;
+    for (const MeshSource& m : o.meshes) {
+      OrganJob j;
+      j.name = m.organ.empty() ? organ_from_mesh_path(m.path) : m.organ;
+      if (!seen.insert(j.name).second) throw InputError(m.path, "organ '" + j.name + "' is given twice");
+      j.label = label_id(j.name);
+      j.mesh_path = m.path;
+      jobs.push_back(j);
+    }
+  } else {
+    auto find_job = [&](const std::string& name) -> OrganJob {
+      OrganJob j;
+      j.name = name;
+      j.label = label_id(name);
+      for (size_t s = 0; s < labels.size(); ++s) {
+        const auto& l = labels[s];
+        if (!l.source.organ.empty()) {
+          if (l.source.organ == name) {
+            j.source = static_cast<int>(s);
+            for (const auto& [v, n] : l.counts) j.values.push_back(v);
+            return j;
+          }
+        } else if (j.label > 0 && l.counts.count(j.label)) {
+          j.source = static_cast<int>(s);
+          j.values = {j.label};
+          return j;
+        }
+      }
+      return j;
+    };
+    std::vector<std::string> names = o.organs;
+    if (names.empty()) {
+      for (const auto& l : labels) {
+        if (!l.source.organ.empty()) {
+          names.push_back(l.source.organ);
+          continue;
+        }
+        for (const auto& [v, n] : l.counts) {
+          const std::string nm = label_name(v);
+          if (!nm.empty() && is_default_soft_organ(nm) &&
+              std::find(names.begin(), names.end(), nm) == names.end())
+            names.push_back(nm);
+        }
+      }
+      if (names.empty())
+        throw InputError(labels.front().source.path,
+                         "no soft organ in the label map; name the organs to build with --organs");
+    }
+    for (const std::string& name : names) {
+      OrganJob j = find_job(name);
+      if (j.source < 0) {
+        bool named_mask = false;
+        for (const auto& l : labels) named_mask |= l.source.organ == name;
+        if (j.label == 0 && !named_mask)
+          throw InputError("--organs " + name, "unknown organ '" + name +
+                                                   "' (expected a TotalSegmentator name such as liver, "
+                                                   "kidney_left; or give its mask as --labels " + name + "=FILE)");
+        std::string src = labels.front().source.path;
+        throw InputError(src, "organ '" + name + "' (label " + std::to_string(j.label) +
+                                  ") is absent from the label map");
+      }
+      jobs.push_back(j);
+    }
+  }
+  for (OrganJob& j : jobs) {
+    const auto it = o.budgets.find(j.name);
+    j.budget = it != o.budgets.end() ? it->second : default_face_budget(j.name);
+  }
+  for (const auto& [name, b] : o.budgets) {
+    bool found = false;
+    for (const auto& j : jobs) found |= j.name == name;
+    if (!found) throw InputError("--budget " + name, "organ '" + name + "' is not among the organs being built");
+  }
+
+  // ---- stages 3 and 4 per organ ----
+  io::OrganSet set;
+  set.units = "mm";
+  set.space = "RAS";
+  json quality;
+  quality["version"] = SOFTATLAS_VERSION;
+  quality["space"] = "RAS";
+  quality["units"] = "mm";
+  json qorgans = json::object();
+  for (const OrganJob& j : jobs) {
+    json q;
+    io::TriMesh stage3;
+    double reference_volume = 0.0;  // mask volume (labels) or input volume (closed meshes)
+    t0 = Clock::now();
+    if (!j.mesh_path.empty()) {
+      say("surface: %s from mesh %s", j.name, j.mesh_path);
+      stage3 = io::read_mesh(j.mesh_path);
+      const SurfaceReport in = inspect_surface(stage3);
+      if (in.nonmanifold_edges > 0)
+        throw InputError(j.mesh_path, std::to_string(in.nonmanifold_edges) +
+                                          " non-manifold edges (edges shared by 3 or more triangles); "
+                                          "expected an edge-manifold surface");
+      q["source"] = j.mesh_path;
+      q["input_boundary_edges"] = in.boundary_edges;
+      q["input_components"] = in.components;
+      if (in.closed()) reference_volume = std::abs(in.signed_volume_mm3);
+      provenance["mesh:" + j.mesh_path] = sha256_file(j.mesh_path);
+    } else {
+      const LoadedLabels& l = labels[j.source];
+      const std::string where = l.source.path + ": " + j.name;
+      say("surface: %s (flying edges, windowed sinc) from %s", j.name, l.source.path);
+      const SurfaceResult s = label_surface(l.volume, j.values, o.surface, where);
+      stage3 = s.mesh;
+      reference_volume = s.mask_volume_mm3;
+      q["source"] = l.source.path;
+      q["mask_voxels"] = s.mask_voxels;
+      q["pieces_kept"] = s.pieces_kept;
+      q["large_pieces"] = s.large_pieces;
+      q["specks_removed"] = s.specks_removed;
+      q["specks_volume_mm3"] = s.specks_volume_mm3;
+      if (s.large_pieces > 1)
+        q["notes"].push_back("the label has " + std::to_string(s.large_pieces) +
+                             " large pieces; all are kept as separate closed surfaces");
+    }
+    result.times.add("surface", since(t0));
+
+    t0 = Clock::now();
+    say("remesh: %s to %s faces (CGAL repair, isotropic remeshing, edge collapse)", j.name,
+        std::to_string(j.budget));
+    RemeshOptions ro = o.remesh;
+    ro.face_budget = j.budget;
+    const RemeshResult r = repair_and_remesh(stage3, ro, (j.mesh_path.empty() ? labels[j.source].source.path : j.mesh_path) + ": " + j.name);
+    result.times.add("remesh", since(t0));
+
+    const SurfaceReport rep = inspect_surface(r.mesh);
+    const double volume = softatlas::sim::enclosed_volume(r.mesh.vertices, r.mesh.faces);
+    q["label"] = j.label;
+    q["faces"] = rep.faces;
+    q["face_budget"] = j.budget;
+    q["faces_within_2pct"] = std::abs(static_cast<double>(rep.faces) - j.budget) <= 0.02 * j.budget;
+    q["vertices"] = rep.vertices;
+    q["closed"] = rep.closed();
+    q["edge_manifold"] = rep.edge_manifold();
+    q["consistently_oriented"] = rep.oriented();
+    q["outward"] = volume > 0;
+    q["self_intersections"] = r.self_intersections;
+    q["components"] = rep.components;
+    q["genus"] = rep.genus;
+    q["hausdorff_mm"] = r.hausdorff_mm;
+    q["mean_distance_mm"] = r.mean_distance_mm;
+    q["distance_reference"] = "stage-3 surface (smoothed flying-edges surface of the label, or the input mesh)";
+    q["target_edge_mm"] = r.target_edge_mm;
+    q["min_angle_deg"] = rep.min_angle_deg;
+    q["share_min_angle_ge_20deg"] = rep.share_angle_ge_20;
+    q["volume_mm3"] = volume;
+    if (reference_volume > 0) {
+      q[j.mesh_path.empty() ? "mask_volume_mm3" : "input_volume_mm3"] = reference_volume;
+      q["volume_ratio"] = volume / reference_volume;
+    }
+    q["repairs"] = r.repairs;
+    say("  %s: %s", j.name,
+        std::to_string(rep.faces) + " faces, closed " + (rep.closed() ? "yes" : "NO") + ", volume " +
+            fmt(volume / 1000.0) + " mL" +
+            (reference_volume > 0 ? " (reference " + fmt(reference_volume / 1000.0) + " mL)" : "") +
+            ", Hausdorff " + fmt(r.hausdorff_mm) + " mm");
+    qorgans[j.name] = q;
+
+    io::OrganEntry e;
+    e.name = j.name;
+    e.label = j.label;
+    e.fma = fma_id(j.name);
+    e.color = io::default_organ_color(j.name);
+    e.mesh_file = "organs/" + j.name + ".ply";
+    e.face_budget = j.budget;
+    e.mesh = r.mesh;
+    set.organs.push_back(std::move(e));
+  }
+  quality["organs"] = qorgans;
+
+  // ---- stage 5: connect ----
+  t0 = Clock::now();
+  say("connect: proximity springs (threshold %s mm)", fmt(o.connect.distance_mm));
+  std::vector<PairReport> pairs;
+  set.connections = connect_organs(set.organs, o.connect, &pairs);
+  json qpairs = json::array();
+  for (const auto& p : pairs)
+    qpairs.push_back({{"organ_a", p.organ_a}, {"organ_b", p.organ_b}, {"closest_mm", p.closest_mm},
+                      {"springs", p.springs}, {"default_pair", p.default_pair}});
+  quality["connections"] = qpairs;
+  result.times.add("connect", since(t0));
+
+  // ---- stage 6: write ----
+  t0 = Clock::now();
+  provenance_params["organs"] = json::array();
+  for (const auto& j : jobs) provenance_params["organs"].push_back(j.name);
+  for (const auto& j : jobs) provenance_params["budget"][j.name] = j.budget;
+  provenance_params["smoothing_iterations"] = o.surface.smoothing_iterations;
+  provenance_params["smoothing_passband"] = o.surface.smoothing_passband;
+  provenance_params["speck_share"] = o.surface.speck_share;
+  provenance_params["remesh_iterations"] = o.remesh.remesh_iterations;
+  provenance_params["wrap_alpha_mm"] = o.remesh.wrap_alpha_mm;
+  provenance_params["connect_distance_mm"] = o.connect.distance_mm;
+  provenance_params["connect_spacing_mm"] = o.connect.spacing_mm;
+  provenance_params["connect_stiffness"] = o.connect.stiffness;
+  provenance["parameters"] = provenance_params.dump();
+  set.provenance = provenance;
+  quality["provenance"] = provenance;
+  json times = json::object();
+  for (const auto& [k, v] : result.times.seconds) times[k] = v;
+  quality["stage_seconds"] = times;
+  result.quality_json = quality.dump(2) + "\n";
+  result.organs = set.organs.size();
+  result.connections = set.connections.size();
+  say("write: %s", o.output);
+  io::write_organ_set(set, o.output, {{"quality.json", result.quality_json}}, o.overwrite);
+  result.times.add("write", since(t0));
+  return result;
+}
+
+bool check_organ_set(const std::string& folder, std::string* report_json) {
+  const io::OrganSet set = io::read_organ_set(folder);
+  json out;
+  out["folder"] = folder;
+  bool all_ok = true;
+  json organs = json::object();
+  for (const auto& e : set.organs) {
+    const SurfaceReport r = inspect_surface(e.mesh);
+    json q;
+    q["faces"] = r.faces;
+    q["face_budget"] = e.face_budget;
+    const bool budget_ok = e.face_budget <= 0 || std::abs(static_cast<double>(r.faces) - e.face_budget) <= 0.02 * e.face_budget;
+    q["closed"] = r.closed();
+    q["edge_manifold"] = r.edge_manifold();
+    q["consistently_oriented"] = r.oriented();
+    q["outward"] = r.outward();
+    q["genus"] = r.genus;
+    q["components"] = r.components;
+    q["volume_mm3"] = r.signed_volume_mm3;
+    q["share_min_angle_ge_20deg"] = r.share_angle_ge_20;
+    const bool ok = budget_ok && r.closed() && r.oriented() && r.outward();
+    q["ok"] = ok;
+    all_ok &= ok;
+    organs[e.name] = q;
+  }
+  out["organs"] = organs;
+  out["connections"] = set.connections.size();
+  const fs::path qpath = fs::path(folder) / "quality.json";
+  if (fs::exists(qpath)) {
+    try {
+      out["quality"] = json::parse(io::read_text_file(qpath.string()));
+    } catch (const json::exception& e) {
+      throw InputError(qpath.string(), std::string("not valid JSON: ") + e.what());
+    }
+  }
+  out["ok"] = all_ok;
+  *report_json = out.dump(2) + "\n";
+  return all_ok;
+}
+
+}  // namespace softatlas::pipeline

@@ -1,0 +1,952 @@
+// The step: forces, integrators (paper 000 Algorithm 1, symplectic Euler, implicit Euler + CG),
+// constraint passes (compensation, volume), the tool, sleeping organs and the stability guard.
+// Nothing here allocates or throws: every buffer was sized by make_work().
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "forces.hpp"
+#include "softatlas/sim/sim.hpp"
+
+namespace softatlas::sim {
+namespace {
+
+using kernels::kTiny;
+constexpr int kSnapshotEvery = 16;
+
+// ---- curvature (paper 000 eq 2) into work.half_bk for one organ ------------------------------
+void curvature_pass(const Model& m, const OrganRange& r, const State& s, Work& w) {
+  const int32_t vb = r.vert_begin, ve = r.vert_end;
+  std::fill(w.lap_x.begin() + vb, w.lap_x.begin() + ve, 0.0);
+  std::fill(w.lap_y.begin() + vb, w.lap_y.begin() + ve, 0.0);
+  std::fill(w.lap_z.begin() + vb, w.lap_z.begin() + ve, 0.0);
+  std::fill(w.area2.begin() + vb, w.area2.begin() + ve, 0.0);
+  accumulate_cotan_laplacian(r.face_end - r.face_begin, m.face_vert.data() + 3 * r.face_begin,
+                             s.x.data(), s.y.data(), s.z.data(), w.lap_x.data(), w.lap_y.data(),
+                             w.lap_z.data(), w.area2.data());
+  // h_i = coef * H_i, H_i = 1.5 |L_i| / area2_i (geometry.cpp); coef = b L / 2 (p = 1) or
+  // sqrt(b) L / 2 (p = 2), so that the spring kernel reads a + h_a + h_b or a + (h_a + h_b)^2.
+  const double coef = 1.5 * (r.elastica_p == 1 ? 0.5 * r.elastica_b * r.curvature_unit_m
+                                                : 0.5 * std::sqrt(r.elastica_b) * r.curvature_unit_m);
+  const double* __restrict lx = w.lap_x.data();
+  const double* __restrict ly = w.lap_y.data();
+  const double* __restrict lz = w.lap_z.data();
+  const double* __restrict a2 = w.area2.data();
+  double* __restrict h = w.half_bk.data();
+  for (int32_t v = vb; v < ve; ++v) {
+    const double l = std::sqrt(lx[v] * lx[v] + ly[v] * ly[v] + lz[v] * lz[v]);
+    h[v] = a2[v] > kTiny ? coef * l / a2[v] : 0.0;
+  }
+}
+
+template <int P>
+void organ_springs(const Model& m, const OrganRange& r, const State& s, Work& w) {
+  if (r.damping)
+    kernels::spring_forces<P, true>(r.spring_begin, r.spring_end, m.spring_a.data(),
+                                    m.spring_b.data(), m.spring_rest.data(), m.spring_k.data(),
+                                    m.spring_d.data(), r.elastica_a, r.elastica_cap, s.x.data(), s.y.data(),
+                                    s.z.data(), s.vx.data(), s.vy.data(), s.vz.data(),
+                                    w.half_bk.data(), w.fx.data(), w.fy.data(), w.fz.data());
+  else
+    kernels::spring_forces<P, false>(r.spring_begin, r.spring_end, m.spring_a.data(),
+                                     m.spring_b.data(), m.spring_rest.data(), m.spring_k.data(),
+                                     m.spring_d.data(), r.elastica_a, r.elastica_cap, s.x.data(), s.y.data(),
+                                     s.z.data(), s.vx.data(), s.vy.data(), s.vz.data(),
+                                     w.half_bk.data(), w.fx.data(), w.fy.data(), w.fz.data());
+}
+
+// Which spring measure an organ uses: 0 Hooke, 1/2 elastica p, 3 elastica with b = 0.
+int spring_measure_kind(const OrganRange& r) {
+  if (r.model != ModelKind::nmsm) return 0;
+  if (!r.curvature) return 3;
+  return r.elastica_p;
+}
+
+// Flexion (dihedral) springs, energy 1/2 k (theta - theta0)^2 (paper 003 flexion springs in the
+// rotation-invariant dihedral form, docs/physics.md). Gradients of theta (Bridson et al. 2003):
+//   g_c = -|e| n1 / |n1|^2, g_d = -|e| n2 / |n2|^2,
+//   g_a = -((1 - t_c) g_c + (1 - t_d) g_d), g_b = -(t_c g_c + t_d g_d),
+// t_c = (c - a).e / |e|^2 (where c projects on the edge), e = b - a.
+void flexion_forces(const Model& m, const OrganRange& r, const State& s, Work& w) {
+  const double* X = s.x.data();
+  const double* Y = s.y.data();
+  const double* Z = s.z.data();
+  for (int32_t f = r.flex_begin; f < r.flex_end; ++f) {
+    const int32_t a = m.flex_a[f], b = m.flex_b[f], c = m.flex_c[f], d = m.flex_d[f];
+    const double pa[3] = {X[a], Y[a], Z[a]}, pb[3] = {X[b], Y[b], Z[b]}, pc[3] = {X[c], Y[c], Z[c]},
+                 pd[3] = {X[d], Y[d], Z[d]};
+    const double e[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
+    const double u[3] = {pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]};
+    const double q[3] = {pd[0] - pb[0], pd[1] - pb[1], pd[2] - pb[2]};
+    const double n1[3] = {e[1] * u[2] - e[2] * u[1], e[2] * u[0] - e[0] * u[2], e[0] * u[1] - e[1] * u[0]};
+    // n2 = (a - b) x (d - b) = -e x q
+    const double n2[3] = {-(e[1] * q[2] - e[2] * q[1]), -(e[2] * q[0] - e[0] * q[2]),
+                          -(e[0] * q[1] - e[1] * q[0])};
+    const double n1s = n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2];
+    const double n2s = n2[0] * n2[0] + n2[1] * n2[1] + n2[2] * n2[2];
+    const double es = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+    if (!(n1s > kTiny) || !(n2s > kTiny) || !(es > kTiny)) continue;  // degenerate wing
+    const double el = std::sqrt(es);
+    double theta = dihedral_angle(pa, pb, pc, pd) - m.flex_rest_angle[f];
+    if (theta > M_PI) theta -= 2 * M_PI;
+    if (theta < -M_PI) theta += 2 * M_PI;
+    const double tc = (u[0] * e[0] + u[1] * e[1] + u[2] * e[2]) / es;
+    const double td = ((pd[0] - pa[0]) * e[0] + (pd[1] - pa[1]) * e[1] + (pd[2] - pa[2]) * e[2]) / es;
+    double gc[3], gd[3];
+    for (int i = 0; i < 3; ++i) gc[i] = -el * n1[i] / n1s, gd[i] = -el * n2[i] / n2s;
+    const double coef = -m.flex_k[f] * theta;  // F = -k (theta - theta0) grad theta
+    for (int i = 0; i < 3; ++i) {
+      const double ga = -((1 - tc) * gc[i] + (1 - td) * gd[i]);
+      const double gb = -(tc * gc[i] + td * gd[i]);
+      double* F[3] = {w.fx.data(), w.fy.data(), w.fz.data()};
+      F[i][a] += coef * ga, F[i][b] += coef * gb, F[i][c] += coef * gc[i], F[i][d] += coef * gd[i];
+    }
+  }
+}
+
+void connection_forces(const Model& m, const State& s, Work& w) {
+  if (m.nconn == 0) return;
+  // Connections are Hooke springs with damping; a sleeping organ's side still feels them.
+  kernels::spring_forces<0, true>(0, m.nconn, m.conn_a.data(), m.conn_b.data(),
+                                  m.conn_rest.data(), m.conn_k.data(), m.conn_d.data(), 1.0, 0.0,
+                                  s.x.data(), s.y.data(), s.z.data(), s.vx.data(), s.vy.data(),
+                                  s.vz.data(), nullptr, w.fx.data(), w.fy.data(), w.fz.data());
+}
+
+// All internal forces of awake organs into work.f (zeroed first unless the explicit update
+// already left them zero: it clears them as it consumes them, as bench-ref does).
+void internal_forces(const Model& m, const State& s, Work& w) {
+  if (!w.forces_zero) {
+    std::fill(w.fx.begin(), w.fx.end(), 0.0);
+    std::fill(w.fy.begin(), w.fy.end(), 0.0);
+    std::fill(w.fz.begin(), w.fz.end(), 0.0);
+  }
+  w.forces_zero = false;
+  for (size_t o = 0; o < m.organs.size(); ++o) {
+    if (!s.organ_awake[o]) continue;
+    const OrganRange& r = m.organs[o];
+    switch (spring_measure_kind(r)) {
+      case 0: organ_springs<0>(m, r, s, w); break;
+      case 1: curvature_pass(m, r, s, w); organ_springs<1>(m, r, s, w); break;
+      case 2: curvature_pass(m, r, s, w); organ_springs<2>(m, r, s, w); break;
+      default: organ_springs<3>(m, r, s, w); break;
+    }
+    if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w);
+  }
+  connection_forces(m, s, w);
+}
+
+// The tool's force or hold, and its reaction (force of the organ on the tool), after the
+// internal forces are in work.f.
+void apply_tool(const Model& m, State& s, Work& w, bool reaction = true, bool add_force = true) {
+  ToolState& t = s.tool;
+  if (reaction) t.reaction_N = {0, 0, 0};
+  if (t.mode == ToolMode::none || t.verts.empty()) return;
+  if (reaction)
+    for (int32_t v : t.verts) {
+      t.reaction_N[0] += w.fx[v], t.reaction_N[1] += w.fy[v], t.reaction_N[2] += w.fz[v];
+    }
+  if (t.mode == ToolMode::force && add_force) {
+    double F[3] = {t.force_N[0], t.force_N[1], t.force_N[2]};
+    const double mag = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]);
+    t.clamped = false;
+    if (m.guard && mag > m.max_tool_force_N) {
+      const double sc = m.max_tool_force_N / mag;
+      F[0] *= sc, F[1] *= sc, F[2] *= sc;
+      t.clamped = true;
+    }
+    const double share = 1.0 / static_cast<double>(t.verts.size());
+    for (int32_t v : t.verts) w.fx[v] += F[0] * share, w.fy[v] += F[1] * share, w.fz[v] += F[2] * share;
+  }
+}
+
+// Where the attached vertices are held at the end of (sub)step fraction `frac` of this step.
+void attach_targets(const Model& m, const State& s, Work& w, double frac) {
+  const ToolState& t = s.tool;
+  const double p0 = std::min(1.0, static_cast<double>(t.attach_progress) / t.attach_iterations);
+  const double p1 = std::min(1.0, static_cast<double>(t.attach_progress + 1) / t.attach_iterations);
+  const double p = p0 + (p1 - p0) * frac;
+  for (size_t q = 0; q < t.verts.size(); ++q)
+    for (int c = 0; c < 3; ++c) w.tool_target[3 * q + c] = t.anchor[3 * q + c] + p * t.offset_m[c];
+}
+
+// Held vertices get the velocity that carries them to their target over h; with
+// `snap` their positions are set to the target as well (before an implicit solve, or after an
+// explicit update to remove rounding).
+void hold_attached(State& s, const Work& w, double h, bool snap) {
+  const ToolState& t = s.tool;
+  for (size_t q = 0; q < t.verts.size(); ++q) {
+    const int32_t v = t.verts[q];
+    const double nx = w.tool_target[3 * q], ny = w.tool_target[3 * q + 1], nz = w.tool_target[3 * q + 2];
+    s.vx[v] = (nx - s.x[v]) / h, s.vy[v] = (ny - s.y[v]) / h, s.vz[v] = (nz - s.z[v]) / h;
+    if (snap) s.x[v] = nx, s.y[v] = ny, s.z[v] = nz;
+  }
+}
+
+void snap_attached(State& s, const Work& w) {
+  const ToolState& t = s.tool;
+  for (size_t q = 0; q < t.verts.size(); ++q) {
+    const int32_t v = t.verts[q];
+    s.x[v] = w.tool_target[3 * q], s.y[v] = w.tool_target[3 * q + 1], s.z[v] = w.tool_target[3 * q + 2];
+  }
+}
+
+struct IntegrateStats {
+  double max_speed2 = 0.0;
+  double checksum = 0.0;
+  double accel_sum = 0.0;
+};
+
+// Explicit update of one organ's free vertices. Semi-implicit Euler: v += h (F/m + g),
+// x += h v. Paper 000 Algorithm 1 (lines 9-10): p = x + v h + F h^2 / mu, v = (p - x) / h,
+// x = p; algebraically the same scheme, written in position form (docs/physics.md).
+template <bool Verlet>
+void integrate_organ(const Model& m, const OrganRange& r, State& s, Work& w, double h,
+                     IntegrateStats& st) {
+  const double gx = m.gravity ? m.gravity_m_s2[0] : 0.0, gy = m.gravity ? m.gravity_m_s2[1] : 0.0,
+               gz = m.gravity ? m.gravity_m_s2[2] : 0.0;
+  const double* __restrict mask = w.free_mask.data();
+  const double* __restrict inv = m.vert_inv_mass.data();
+  double* __restrict x = s.x.data();
+  double* __restrict y = s.y.data();
+  double* __restrict z = s.z.data();
+  double* __restrict vx = s.vx.data();
+  double* __restrict vy = s.vy.data();
+  double* __restrict vz = s.vz.data();
+  double* __restrict fx = w.fx.data();
+  double* __restrict fy = w.fy.data();
+  double* __restrict fz = w.fz.data();
+  double vmax2 = 0.0, sum = 0.0, asum = 0.0;
+  const bool accel = w.measure_accel;
+  if (accel)
+    for (int32_t i = r.vert_begin; i < r.vert_end; ++i) {
+      const double wi = inv[i] * mask[i], g = mask[i];
+      const double ax = wi * fx[i] + g * gx, ay = wi * fy[i] + g * gy, az = wi * fz[i] + g * gz;
+      asum += wi > 0 ? std::sqrt(ax * ax + ay * ay + az * az) : 0.0;
+    }
+#pragma omp simd reduction(max : vmax2) reduction(+ : sum)
+  for (int32_t i = r.vert_begin; i < r.vert_end; ++i) {
+    const double wi = inv[i] * mask[i], g = mask[i];
+    const double ax = wi * fx[i] + g * gx, ay = wi * fy[i] + g * gy, az = wi * fz[i] + g * gz;
+    if constexpr (Verlet) {
+      const double px = x[i] + vx[i] * h + ax * h * h, py = y[i] + vy[i] * h + ay * h * h,
+                   pz = z[i] + vz[i] * h + az * h * h;
+      vx[i] = (px - x[i]) / h, vy[i] = (py - y[i]) / h, vz[i] = (pz - z[i]) / h;
+      x[i] = px, y[i] = py, z[i] = pz;
+    } else {
+      vx[i] += h * ax, vy[i] += h * ay, vz[i] += h * az;
+      x[i] += h * vx[i], y[i] += h * vy[i], z[i] += h * vz[i];
+    }
+    fx[i] = 0.0, fy[i] = 0.0, fz[i] = 0.0;
+    const double sp = vx[i] * vx[i] + vy[i] * vy[i] + vz[i] * vz[i];
+    vmax2 = sp > vmax2 ? sp : vmax2;
+    sum += x[i] + y[i] + z[i] + sp;
+  }
+  st.max_speed2 = std::max(st.max_speed2, vmax2);
+  st.checksum += sum;
+  st.accel_sum += asum;
+}
+
+// Over-stretch / over-compress compensation (Duan et al. 2016; paper 000 CMSM and the tau_s of
+// Table III): springs longer than (1 + tau_s) l0 or shorter than (1 - tau_c) l0 are moved back to
+// that bound, split by inverse mass (Provot 1995), then velocities follow the correction.
+void compensation_pass(const Model& m, const OrganRange& r, State& s, Work& w, double h) {
+  const int32_t vb = r.vert_begin, ve = r.vert_end;
+  std::copy(s.x.begin() + vb, s.x.begin() + ve, w.px.begin() + vb);
+  std::copy(s.y.begin() + vb, s.y.begin() + ve, w.py.begin() + vb);
+  std::copy(s.z.begin() + vb, s.z.begin() + ve, w.pz.begin() + vb);
+  const double hi = r.tau_s >= 0 ? 1.0 + r.tau_s : 1e300;
+  const double lo = r.tau_c >= 0 ? 1.0 - r.tau_c : 0.0;
+  const bool held = s.tool.mode == ToolMode::attach && !s.tool.verts.empty();
+  double react[3] = {0, 0, 0};
+  for (int it = 0; it < r.compensation_iterations; ++it) {
+    for (int32_t q = r.spring_begin; q < r.spring_end; ++q) {
+      const int32_t a = m.spring_a[q], b = m.spring_b[q];
+      const double wa = m.vert_inv_mass[a] * w.free_mask[a], wb = m.vert_inv_mass[b] * w.free_mask[b];
+      if (wa + wb <= 0) continue;
+      const double dx = s.x[b] - s.x[a], dy = s.y[b] - s.y[a], dz = s.z[b] - s.z[a];
+      const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+      const double l0 = m.spring_length0[q];
+      double target;
+      if (l > hi * l0) target = hi * l0;
+      else if (l < lo * l0) target = lo * l0;
+      else continue;
+      if (!(l > kTiny)) continue;
+      const double corr = (l - target) / (l * (wa + wb));
+      s.x[a] += wa * corr * dx, s.y[a] += wa * corr * dy, s.z[a] += wa * corr * dz;
+      s.x[b] -= wb * corr * dx, s.y[b] -= wb * corr * dy, s.z[b] -= wb * corr * dz;
+      if (held) {  // a spring from a held vertex: its correction force acts on the tool
+        const bool a_held = wa == 0 && m.vert_inv_mass[a] > 0, b_held = wb == 0 && m.vert_inv_mass[b] > 0;
+        // the free end moved by +/- w corr d; the held end feels minus the implied force
+        if (a_held && !b_held)
+          for (int c = 0; c < 3; ++c) react[c] += m.vert_mass[b] * wb * corr * (c == 0 ? dx : c == 1 ? dy : dz) / (h * h);
+        if (b_held && !a_held)
+          for (int c = 0; c < 3; ++c) react[c] -= m.vert_mass[a] * wa * corr * (c == 0 ? dx : c == 1 ? dy : dz) / (h * h);
+      }
+    }
+  }
+  for (int32_t v = vb; v < ve; ++v) {
+    s.vx[v] += (s.x[v] - w.px[v]) / h, s.vy[v] += (s.y[v] - w.py[v]) / h, s.vz[v] += (s.z[v] - w.pz[v]) / h;
+  }
+  for (int c = 0; c < 3; ++c) s.tool.reaction_N[c] += react[c];
+}
+
+// Volume constraint (paper 003 eqs 25-30) on the fan of tetrahedra that the closed surface
+// forms with any point: C = V - V0, grad_i C = 1/6 sum_{faces (i,j,k)} x_j x x_k,
+// dx_i = -s C w_i grad_i C / sum_j w_j |grad_j C|^2 (one projection per step, stiffness s).
+void volume_pass(const Model& m, const OrganRange& r, State& s, Work& w, double h) {
+  const int32_t vb = r.vert_begin, ve = r.vert_end;
+  std::fill(w.lap_x.begin() + vb, w.lap_x.begin() + ve, 0.0);
+  std::fill(w.lap_y.begin() + vb, w.lap_y.begin() + ve, 0.0);
+  std::fill(w.lap_z.begin() + vb, w.lap_z.begin() + ve, 0.0);
+  const double* X = s.x.data();
+  const double* Y = s.y.data();
+  const double* Z = s.z.data();
+  const double vol = enclosed_volume(X, Y, Z, m.face_vert.data(), r.face_begin, r.face_end);
+  const double C = vol - r.rest_volume_m3;
+  for (int32_t f = r.face_begin; f < r.face_end; ++f) {
+    const int32_t i = m.face_vert[3 * f], j = m.face_vert[3 * f + 1], k = m.face_vert[3 * f + 2];
+    auto add = [&](int32_t v, int32_t p, int32_t q) {  // x_p x x_q / 6
+      w.lap_x[v] += (Y[p] * Z[q] - Z[p] * Y[q]) / 6.0;
+      w.lap_y[v] += (Z[p] * X[q] - X[p] * Z[q]) / 6.0;
+      w.lap_z[v] += (X[p] * Y[q] - Y[p] * X[q]) / 6.0;
+    };
+    add(i, j, k), add(j, k, i), add(k, i, j);
+  }
+  double denom = 0.0;
+  for (int32_t v = vb; v < ve; ++v)
+    denom += m.vert_inv_mass[v] * w.free_mask[v] *
+             (w.lap_x[v] * w.lap_x[v] + w.lap_y[v] * w.lap_y[v] + w.lap_z[v] * w.lap_z[v]);
+  if (!(denom > kTiny)) return;
+  const double lambda = -r.volume_stiffness * C / denom;
+  for (int32_t v = vb; v < ve; ++v) {
+    const double wv = m.vert_inv_mass[v] * w.free_mask[v] * lambda;
+    const double dx = wv * w.lap_x[v], dy = wv * w.lap_y[v], dz = wv * w.lap_z[v];
+    s.x[v] += dx, s.y[v] += dy, s.z[v] += dz;
+    s.vx[v] += dx / h, s.vy[v] += dy / h, s.vz[v] += dz / h;
+  }
+}
+
+// Position corrections act as forces m dx / h^2; on the tool's vertices they are part of the
+// reaction (a compensated spring holds the load through its correction, not its Hooke force).
+void constraint_passes(const Model& m, State& s, Work& w, double h) {
+  ToolState& t = s.tool;
+  const bool tool = t.mode == ToolMode::force && !t.verts.empty();
+  std::array<double, 3> before{0, 0, 0};
+  bool any = false;
+  for (size_t o = 0; o < m.organs.size(); ++o) {
+    if (!s.organ_awake[o]) continue;
+    const OrganRange& r = m.organs[o];
+    if (r.compensation_iterations <= 0 && r.volume_stiffness <= 0) continue;
+    if (tool && !any)
+      for (int32_t v : t.verts)
+        before[0] += m.vert_mass[v] * s.x[v], before[1] += m.vert_mass[v] * s.y[v], before[2] += m.vert_mass[v] * s.z[v];
+    any = true;
+    if (r.compensation_iterations > 0) compensation_pass(m, r, s, w, h);
+    if (r.volume_stiffness > 0) volume_pass(m, r, s, w, h);
+  }
+  if (tool && any) {
+    std::array<double, 3> after{0, 0, 0};
+    for (int32_t v : t.verts)
+      after[0] += m.vert_mass[v] * s.x[v], after[1] += m.vert_mass[v] * s.y[v], after[2] += m.vert_mass[v] * s.z[v];
+    for (int c = 0; c < 3; ++c) t.reaction_N[c] += (after[c] - before[c]) / (h * h);
+  }
+}
+
+// free_mask = fixed vertices and vertices held by an attachment excluded. Recomputed only when
+// an attachment is (or was) active.
+void set_free_mask(const Model& m, const State& s, Work& w) {
+  const bool attach = s.tool.mode == ToolMode::attach;
+  if (!attach && !w.mask_dirty) return;
+  for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 ? 1.0 : 0.0;
+  if (attach)
+    for (int32_t v : s.tool.verts) w.free_mask[v] = 0.0;
+  w.mask_dirty = attach;
+}
+
+IntegrateStats explicit_substep(const Model& m, State& s, Work& w, double h, bool verlet,
+                                double frac) {
+  const bool attached = s.tool.mode == ToolMode::attach && !s.tool.verts.empty();
+  internal_forces(m, s, w);
+  apply_tool(m, s, w);
+  if (attached) {  // held vertices: zero acceleration, velocity that lands them on the target
+    attach_targets(m, s, w, frac);
+    hold_attached(s, w, h, /*snap=*/false);
+  }
+  IntegrateStats st;
+  bool all_awake = true;
+  for (size_t o = 0; o < m.organs.size(); ++o) {
+    if (!s.organ_awake[o]) { all_awake = false; continue; }
+    if (verlet) integrate_organ<true>(m, m.organs[o], s, w, h, st);
+    else integrate_organ<false>(m, m.organs[o], s, w, h, st);
+  }
+  w.forces_zero = all_awake;
+  if (attached) snap_attached(s, w);
+  constraint_passes(m, s, w, h);
+  return st;
+}
+
+// ---- implicit Euler (Baraff & Witkin 1998), linearised once per step -------------------------
+// (M - h D - h^2 K) dv = h (f0 + h K v0); v1 = v0 + dv; x1 = x0 + h v1.
+// Per spring the block of -h D - h^2 K is B = alpha I + beta u u^T with
+//   alpha = h^2 k_e max(0, 1 - L_e / l),  beta = h d + h^2 k_e - alpha,
+// where k_e, L_e are the stiffness and rest length of the spring written as Hooke on l
+// (elastica: curvature frozen over the step, k_e = k (a + h_a + h_b), L_e = l_e0 / (a + ...)).
+// The max(0, .) drops the indefinite compressive part so that CG sees an SPD matrix.
+// Flexion springs and the volume / compensation passes are treated explicitly.
+struct SpringBlockArrays {
+  double *alpha, *beta, *ux, *uy, *uz;
+};
+
+template <int P>
+void spring_blocks(int32_t begin, int32_t end, const int32_t* sa, const int32_t* sb,
+                   const double* rest, const double* k, const double* d, double a, double cap,
+                   const double* hv,
+                   const State& s, Work& w, SpringBlockArrays B, double h) {
+  const double* __restrict x = s.x.data();
+  const double* __restrict y = s.y.data();
+  const double* __restrict z = s.z.data();
+  const double* __restrict vx = s.vx.data();
+  const double* __restrict vy = s.vy.data();
+  const double* __restrict vz = s.vz.data();
+  double* __restrict rx = w.rx.data();
+  double* __restrict ry = w.ry.data();
+  double* __restrict rz = w.rz.data();
+  for (int32_t q = begin; q < end; ++q) {
+    const int32_t i = sa[q], j = sb[q];
+    const double dx = x[j] - x[i], dy = y[j] - y[i], dz = z[j] - z[i];
+    const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+    const double inv = 1.0 / (l > kTiny ? l : kTiny);
+    const double ux = dx * inv, uy = dy * inv, uz = dz * inv;
+    double factor = 1.0;
+    if constexpr (P == 1) factor = a + std::min(hv[i] + hv[j], cap);
+    if constexpr (P == 2) factor = a + std::min((hv[i] + hv[j]) * (hv[i] + hv[j]), cap);
+    if constexpr (P == 3) factor = a;
+    const double ke = k[q] * factor, Le = rest[q] / factor;
+    const double dq = d ? d[q] : 0.0;
+    const double c = std::max(0.0, 1.0 - Le * inv);
+    const double alpha = h * h * ke * c;
+    const double kbeta = h * h * ke - alpha;  // stiffness part of beta
+    // force at x0, v0 (eqs 6-7)
+    const double dvx = vx[j] - vx[i], dvy = vy[j] - vy[i], dvz = vz[j] - vz[i];
+    const double dvu = dvx * ux + dvy * uy + dvz * uz;
+    const double f = ke * (l - Le) + dq * dvu;
+    // h^2 K v0 term at i: +(alpha dv + kbeta u (u.dv)) (K pulls i toward j's motion)
+    const double kx = alpha * dvx + kbeta * dvu * ux, ky = alpha * dvy + kbeta * dvu * uy,
+                 kz = alpha * dvz + kbeta * dvu * uz;
+    const double gx = h * f * ux + kx, gy = h * f * uy + ky, gz = h * f * uz + kz;
+    rx[i] += gx, ry[i] += gy, rz[i] += gz;
+    rx[j] -= gx, ry[j] -= gy, rz[j] -= gz;
+    B.alpha[q] = alpha;
+    B.beta[q] = kbeta + h * dq;
+    B.ux[q] = ux, B.uy[q] = uy, B.uz[q] = uz;
+  }
+}
+
+// q += sum over springs of B (p_i - p_j) at i and B (p_j - p_i) at j.
+void apply_blocks(int32_t begin, int32_t end, const int32_t* __restrict sa,
+                  const int32_t* __restrict sb, const double* __restrict alpha,
+                  const double* __restrict beta, const double* __restrict ux,
+                  const double* __restrict uy, const double* __restrict uz,
+                  const double* __restrict px, const double* __restrict py,
+                  const double* __restrict pz, double* __restrict qx, double* __restrict qy,
+                  double* __restrict qz) {
+  for (int32_t q = begin; q < end; ++q) {
+    const int32_t i = sa[q], j = sb[q];
+    const double dx = px[i] - px[j], dy = py[i] - py[j], dz = pz[i] - pz[j];
+    const double bu = beta[q] * (dx * ux[q] + dy * uy[q] + dz * uz[q]);
+    const double gx = alpha[q] * dx + bu * ux[q], gy = alpha[q] * dy + bu * uy[q],
+                 gz = alpha[q] * dz + bu * uz[q];
+    qx[i] += gx, qy[i] += gy, qz[i] += gz;
+    qx[j] -= gx, qy[j] -= gy, qz[j] -= gz;
+  }
+}
+
+void block_diagonal(int32_t begin, int32_t end, const int32_t* sa, const int32_t* sb,
+                    const double* alpha, const double* beta, const double* ux, const double* uy,
+                    const double* uz, Work& w) {
+  for (int32_t q = begin; q < end; ++q) {
+    const int32_t i = sa[q], j = sb[q];
+    const double dx = alpha[q] + beta[q] * ux[q] * ux[q], dy = alpha[q] + beta[q] * uy[q] * uy[q],
+                 dz = alpha[q] + beta[q] * uz[q] * uz[q];
+    w.diag_x[i] += dx, w.diag_y[i] += dy, w.diag_z[i] += dz;
+    w.diag_x[j] += dx, w.diag_y[j] += dy, w.diag_z[j] += dz;
+  }
+}
+
+IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
+  const int32_t n = m.nvert;
+  const bool attached = s.tool.mode == ToolMode::attach && !s.tool.verts.empty();
+  if (attached) {
+    // Move the held vertices first: the solve then sees the pull as a boundary condition.
+    attach_targets(m, s, w, 1.0);
+    hold_attached(s, w, h, /*snap=*/true);
+  }
+  // rhs = h f0 + h^2 K v0, assembled with the blocks; f0 also holds flexion, tool and gravity.
+  w.forces_zero = false;
+  std::fill(w.fx.begin(), w.fx.end(), 0.0);
+  std::fill(w.fy.begin(), w.fy.end(), 0.0);
+  std::fill(w.fz.begin(), w.fz.end(), 0.0);
+  for (size_t o = 0; o < m.organs.size(); ++o) {
+    if (!s.organ_awake[o]) continue;
+    const OrganRange& r = m.organs[o];
+    if (r.curvature) curvature_pass(m, r, s, w);
+    if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w);
+  }
+  apply_tool(m, s, w, /*reaction=*/false);
+  for (int32_t v = 0; v < n; ++v) {
+    const double g = m.gravity ? m.vert_mass[v] : 0.0;
+    w.rx[v] = h * (w.fx[v] + g * m.gravity_m_s2[0]);
+    w.ry[v] = h * (w.fy[v] + g * m.gravity_m_s2[1]);
+    w.rz[v] = h * (w.fz[v] + g * m.gravity_m_s2[2]);
+  }
+  SpringBlockArrays B{w.jac_alpha.data(), w.jac_beta.data(), w.jac_ux.data(), w.jac_uy.data(),
+                      w.jac_uz.data()};
+  for (size_t o = 0; o < m.organs.size(); ++o) {
+    if (!s.organ_awake[o]) continue;
+    const OrganRange& r = m.organs[o];
+    const double* d = r.damping ? m.spring_d.data() : nullptr;
+    auto run = [&](auto P) {
+      spring_blocks<decltype(P)::value>(r.spring_begin, r.spring_end, m.spring_a.data(),
+                                        m.spring_b.data(), m.spring_rest.data(), m.spring_k.data(),
+                                        d, r.elastica_a, r.elastica_cap, w.half_bk.data(), s, w, B, h);
+    };
+    switch (spring_measure_kind(r)) {
+      case 0: run(std::integral_constant<int, 0>{}); break;
+      case 1: run(std::integral_constant<int, 1>{}); break;
+      case 2: run(std::integral_constant<int, 2>{}); break;
+      default: run(std::integral_constant<int, 3>{}); break;
+    }
+  }
+  SpringBlockArrays CB{w.cjac_alpha.data(), w.cjac_beta.data(), w.cjac_ux.data(),
+                       w.cjac_uy.data(), w.cjac_uz.data()};
+  if (m.nconn)
+    spring_blocks<0>(0, m.nconn, m.conn_a.data(), m.conn_b.data(), m.conn_rest.data(),
+                     m.conn_k.data(), m.conn_d.data(), 1.0, 0.0, nullptr, s, w, CB, h);
+  // Jacobi preconditioner
+  for (int32_t v = 0; v < n; ++v) w.diag_x[v] = w.diag_y[v] = w.diag_z[v] = m.vert_mass[v];
+  for (size_t o = 0; o < m.organs.size(); ++o) {
+    if (!s.organ_awake[o]) continue;
+    const OrganRange& r = m.organs[o];
+    block_diagonal(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(), B.alpha,
+                   B.beta, B.ux, B.uy, B.uz, w);
+  }
+  if (m.nconn)
+    block_diagonal(0, m.nconn, m.conn_a.data(), m.conn_b.data(), CB.alpha, CB.beta, CB.ux, CB.uy,
+                   CB.uz, w);
+  // Frozen vertices: sleeping organs and held/fixed vertices keep dv = 0.
+  double* __restrict mask = w.free_mask.data();
+  for (size_t o = 0; o < m.organs.size(); ++o)
+    if (!s.organ_awake[o])
+      std::fill(w.free_mask.begin() + m.organs[o].vert_begin, w.free_mask.begin() + m.organs[o].vert_end, 0.0);
+
+  // PCG on dv (s*), search direction d*, A d in q*.
+  double* __restrict rx = w.rx.data();
+  double* __restrict ry = w.ry.data();
+  double* __restrict rz = w.rz.data();
+  double* __restrict px = w.dx.data();
+  double* __restrict py = w.dy.data();
+  double* __restrict pz = w.dz.data();
+  double* __restrict qx = w.qx.data();
+  double* __restrict qy = w.qy.data();
+  double* __restrict qz = w.qz.data();
+  double* __restrict xx = w.sx.data();
+  double* __restrict xy = w.sy.data();
+  double* __restrict xz = w.sz.data();
+  const double* __restrict mass = m.vert_mass.data();
+  const double* __restrict ix = w.diag_x.data();
+  const double* __restrict iy = w.diag_y.data();
+  const double* __restrict iz = w.diag_z.data();
+  double rz_old = 0.0, rr0 = 0.0;
+  for (int32_t v = 0; v < n; ++v) {
+    const double mk = mask[v];
+    rx[v] *= mk, ry[v] *= mk, rz[v] *= mk;
+    xx[v] = xy[v] = xz[v] = 0.0;
+    px[v] = rx[v] / ix[v], py[v] = ry[v] / iy[v], pz[v] = rz[v] / iz[v];
+    rz_old += rx[v] * px[v] + ry[v] * py[v] + rz[v] * pz[v];
+    rr0 += rx[v] * rx[v] + ry[v] * ry[v] + rz[v] * rz[v];
+  }
+  const double tol2 = m.cg_tolerance * m.cg_tolerance * rr0;
+  for (int it = 0; it < m.cg_iterations && rr0 > 0; ++it) {
+    for (int32_t v = 0; v < n; ++v) qx[v] = mass[v] * px[v], qy[v] = mass[v] * py[v], qz[v] = mass[v] * pz[v];
+    for (size_t o = 0; o < m.organs.size(); ++o) {
+      if (!s.organ_awake[o]) continue;
+      const OrganRange& r = m.organs[o];
+      apply_blocks(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(), B.alpha,
+                   B.beta, B.ux, B.uy, B.uz, px, py, pz, qx, qy, qz);
+    }
+    if (m.nconn)
+      apply_blocks(0, m.nconn, m.conn_a.data(), m.conn_b.data(), CB.alpha, CB.beta, CB.ux, CB.uy,
+                   CB.uz, px, py, pz, qx, qy, qz);
+    double pq = 0.0;
+    for (int32_t v = 0; v < n; ++v) {
+      const double mk = mask[v];
+      qx[v] *= mk, qy[v] *= mk, qz[v] *= mk;
+      pq += px[v] * qx[v] + py[v] * qy[v] + pz[v] * qz[v];
+    }
+    if (!(pq > 0)) break;
+    const double alpha = rz_old / pq;
+    double rz_new = 0.0, rr = 0.0;
+    for (int32_t v = 0; v < n; ++v) {
+      xx[v] += alpha * px[v], xy[v] += alpha * py[v], xz[v] += alpha * pz[v];
+      rx[v] -= alpha * qx[v], ry[v] -= alpha * qy[v], rz[v] -= alpha * qz[v];
+      rz_new += rx[v] * rx[v] / ix[v] + ry[v] * ry[v] / iy[v] + rz[v] * rz[v] / iz[v];
+      rr += rx[v] * rx[v] + ry[v] * ry[v] + rz[v] * rz[v];
+    }
+    if (rr <= tol2) break;
+    const double beta = rz_new / rz_old;
+    rz_old = rz_new;
+    for (int32_t v = 0; v < n; ++v) {
+      px[v] = rx[v] / ix[v] + beta * px[v];
+      py[v] = ry[v] / iy[v] + beta * py[v];
+      pz[v] = rz[v] / iz[v] + beta * pz[v];
+    }
+  }
+  IntegrateStats st;
+  for (int32_t v = 0; v < n; ++v) {
+    if (mask[v] == 0.0) continue;
+    s.vx[v] += xx[v], s.vy[v] += xy[v], s.vz[v] += xz[v];
+    s.x[v] += h * s.vx[v], s.y[v] += h * s.vy[v], s.z[v] += h * s.vz[v];
+    const double sp = s.vx[v] * s.vx[v] + s.vy[v] * s.vy[v] + s.vz[v] * s.vz[v];
+    st.max_speed2 = std::max(st.max_speed2, sp);
+    st.checksum += s.x[v] + s.y[v] + s.z[v] + sp;
+    if (w.measure_accel) st.accel_sum += std::sqrt(xx[v] * xx[v] + xy[v] * xy[v] + xz[v] * xz[v]) / h;
+  }
+  w.mask_dirty = true;
+  set_free_mask(m, s, w);  // restore the mask changed for sleeping organs
+  constraint_passes(m, s, w, h);
+  if (s.tool.mode != ToolMode::none && !s.tool.verts.empty()) {
+    // Reaction at the end of the step (implicit: forces at x_{n+1}).
+    internal_forces(m, s, w);
+    apply_tool(m, s, w, /*reaction=*/true, /*add_force=*/false);
+  }
+  return st;
+}
+
+void snapshot(const Model& m, const State& s, Work& w) {
+  std::copy(s.x.begin(), s.x.end(), w.good_x.begin());
+  std::copy(s.y.begin(), s.y.end(), w.good_y.begin());
+  std::copy(s.z.begin(), s.z.end(), w.good_z.begin());
+  std::copy(s.vx.begin(), s.vx.end(), w.good_vx.begin());
+  std::copy(s.vy.begin(), s.vy.end(), w.good_vy.begin());
+  std::copy(s.vz.begin(), s.vz.end(), w.good_vz.begin());
+  w.good_time_s = s.time_s;
+  w.good_step = s.step_count;
+}
+
+void restore(const Model& m, State& s, Work& w) {
+  if (w.good_step < 0) {  // nothing saved yet: the rest shape is always good
+    std::copy(m.vert_rest_x.begin(), m.vert_rest_x.end(), s.x.begin());
+    std::copy(m.vert_rest_y.begin(), m.vert_rest_y.end(), s.y.begin());
+    std::copy(m.vert_rest_z.begin(), m.vert_rest_z.end(), s.z.begin());
+  } else {
+    std::copy(w.good_x.begin(), w.good_x.end(), s.x.begin());
+    std::copy(w.good_y.begin(), w.good_y.end(), s.y.begin());
+    std::copy(w.good_z.begin(), w.good_z.end(), s.z.begin());
+  }
+  // Velocities are zeroed: the energy that blew up must not come back.
+  std::fill(s.vx.begin(), s.vx.end(), 0.0);
+  std::fill(s.vy.begin(), s.vy.end(), 0.0);
+  std::fill(s.vz.begin(), s.vz.end(), 0.0);
+}
+
+}  // namespace
+
+const char* to_string(StepStatus status) {
+  switch (status) {
+    case StepStatus::ok: return "ok";
+    case StepStatus::substepped: return "substepped";
+    case StepStatus::implicit_fallback: return "implicit-fallback";
+    case StepStatus::restored: return "restored";
+  }
+  return "?";
+}
+
+State make_state(const Model& m) {
+  State s;
+  s.x = m.vert_rest_x, s.y = m.vert_rest_y, s.z = m.vert_rest_z;
+  s.vx.assign(m.nvert, 0.0), s.vy.assign(m.nvert, 0.0), s.vz.assign(m.nvert, 0.0);
+  s.organ_awake.assign(m.organs.size(), 1);
+  s.organ_still_steps.assign(m.organs.size(), 0);
+  return s;
+}
+
+Work make_work(const Model& m) {
+  Work w;
+  const size_t n = m.nvert;
+  for (auto* v : {&w.fx, &w.fy, &w.fz, &w.lap_x, &w.lap_y, &w.lap_z, &w.area2, &w.half_bk, &w.px,
+                  &w.py, &w.pz, &w.rx, &w.ry, &w.rz, &w.dx, &w.dy, &w.dz, &w.qx, &w.qy, &w.qz,
+                  &w.sx, &w.sy, &w.sz, &w.diag_x, &w.diag_y, &w.diag_z, &w.vx0, &w.vy0, &w.vz0,
+                  &w.free_mask, &w.good_x, &w.good_y, &w.good_z, &w.good_vx, &w.good_vy,
+                  &w.good_vz})
+    v->assign(n, 0.0);
+  for (auto* v : {&w.jac_alpha, &w.jac_beta, &w.jac_ux, &w.jac_uy, &w.jac_uz, &w.jac_damp})
+    v->assign(m.nspring, 0.0);
+  for (auto* v : {&w.cjac_alpha, &w.cjac_beta, &w.cjac_ux, &w.cjac_uy, &w.cjac_uz, &w.cjac_damp})
+    v->assign(m.nconn, 0.0);
+  w.organ_volume.assign(m.organs.size(), 0.0);
+  w.tool_target.reserve(3 * n);  // attach() may hold any number of vertices up to all
+  for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 ? 1.0 : 0.0;
+  return w;
+}
+
+StepReport step(const Model& m, State& s, Work& w) {
+  StepReport rep;
+  set_free_mask(m, s, w);
+  if (s.tool.mode == ToolMode::attach) w.tool_target.resize(3 * s.tool.verts.size());
+
+  Integrator eff = m.guard ? m.effective_integrator : m.integrator;
+  if (m.guard && s.guard_implicit) eff = Integrator::implicit;
+  const int substeps = (eff == Integrator::implicit || !m.guard) ? 1 : m.substeps;
+  IntegrateStats st;
+  if (eff == Integrator::implicit) {
+    st = implicit_step(m, s, w, m.dt_s);
+    if (m.integrator != Integrator::implicit) {
+      rep.status = StepStatus::implicit_fallback;
+      rep.message = "guard: time step too large for the explicit integrator, solved implicitly";
+    }
+  } else {
+    const double h = m.dt_s / substeps;
+    for (int k = 0; k < substeps; ++k) {
+      IntegrateStats sk = explicit_substep(m, s, w, h, eff == Integrator::verlet,
+                                           static_cast<double>(k + 1) / substeps);
+      st.max_speed2 = std::max(st.max_speed2, sk.max_speed2);
+      st.checksum += sk.checksum;
+      st.accel_sum = sk.accel_sum;
+    }
+    if (substeps > 1) {
+      rep.status = StepStatus::substepped;
+      rep.message = "guard: time step above the stable estimate, split into sub-steps";
+    }
+  }
+  if (s.tool.mode == ToolMode::attach && s.tool.attach_progress < s.tool.attach_iterations)
+    ++s.tool.attach_progress;
+  rep.tool_clamped = s.tool.clamped;
+  rep.accel_sum = st.accel_sum;
+  rep.max_speed_m_s = std::sqrt(st.max_speed2);
+
+  // Guard: non-finite values, or a vertex crossing a quarter of the scene in one step.
+  const bool bad = !std::isfinite(st.checksum) || rep.max_speed_m_s * m.dt_s > 0.25 * m.size_m;
+  if (bad && m.guard) {
+    restore(m, s, w);
+    s.guard_implicit = true;
+    ++s.guard_restores;
+    rep.status = StepStatus::restored;
+    rep.message = "guard: non-finite or runaway state; restored the last good state and "
+                  "switched to implicit Euler";
+    rep.max_speed_m_s = 0.0;
+  }
+  if (rep.status != StepStatus::ok || rep.tool_clamped) ++s.guard_actions;
+  s.time_s += m.dt_s;
+  ++s.step_count;
+  if (m.guard && !bad && s.step_count % kSnapshotEvery == 0) snapshot(m, s, w);
+
+  // Sleep: an organ (and its connected organs) still for sleep_steps steps stops being
+  // integrated until a tool or an awake neighbour moves it.
+  if (m.allow_sleep) {
+    const int32_t norg = static_cast<int32_t>(m.organs.size());
+    for (int32_t o = 0; o < norg; ++o) {
+      if (!s.organ_awake[o]) continue;
+      const OrganRange& r = m.organs[o];
+      double vmax2 = 0.0;
+      for (int32_t v = r.vert_begin; v < r.vert_end; ++v)
+        vmax2 = std::max(vmax2, s.vx[v] * s.vx[v] + s.vy[v] * s.vy[v] + s.vz[v] * s.vz[v]);
+      const bool still = vmax2 < m.sleep_speed_m_s * m.sleep_speed_m_s;
+      s.organ_still_steps[o] = still ? s.organ_still_steps[o] + 1 : 0;
+    }
+    for (int32_t o = 0; o < norg; ++o) {
+      if (!s.organ_awake[o] || s.organ_still_steps[o] < m.sleep_steps) continue;
+      bool touched = false;
+      if (s.tool.mode != ToolMode::none)
+        for (int32_t v : s.tool.verts) touched = touched || m.vert_organ[v] == o;
+      bool neighbours_still = true;
+      for (int32_t k = m.organ_neighbors_begin[o]; k < m.organ_neighbors_begin[o + 1]; ++k) {
+        const int32_t nb = m.organ_neighbors[k];
+        neighbours_still = neighbours_still && (!s.organ_awake[nb] || s.organ_still_steps[nb] >= m.sleep_steps);
+      }
+      if (touched || !neighbours_still) continue;
+      s.organ_awake[o] = 0;
+      const OrganRange& r = m.organs[o];
+      std::fill(s.vx.begin() + r.vert_begin, s.vx.begin() + r.vert_end, 0.0);
+      std::fill(s.vy.begin() + r.vert_begin, s.vy.begin() + r.vert_end, 0.0);
+      std::fill(s.vz.begin() + r.vert_begin, s.vz.begin() + r.vert_end, 0.0);
+    }
+    for (int32_t o = 0; o < norg; ++o) {  // an awake, moving neighbour wakes a sleeper
+      if (s.organ_awake[o]) continue;
+      for (int32_t k = m.organ_neighbors_begin[o]; k < m.organ_neighbors_begin[o + 1]; ++k) {
+        const int32_t nb = m.organ_neighbors[k];
+        if (s.organ_awake[nb] && s.organ_still_steps[nb] == 0) {
+          s.organ_awake[o] = 1, s.organ_still_steps[o] = 0;
+          break;
+        }
+      }
+    }
+  }
+  return rep;
+}
+
+int64_t run_to_rest(const Model& m, State& s, Work& w, int64_t max_steps, double accel_tol,
+                    StepReport* last) {
+  const bool was = w.measure_accel;
+  w.measure_accel = true;
+  int64_t k = 0;
+  StepReport r;
+  while (k < max_steps) {
+    r = step(m, s, w);
+    ++k;
+    if (r.status != StepStatus::restored && r.accel_sum < accel_tol) break;
+  }
+  w.measure_accel = was;
+  if (last) *last = r;
+  return k;
+}
+
+void wake(const Model& m, State& s, int32_t organ) {
+  if (organ < 0 || organ >= static_cast<int32_t>(m.organs.size())) return;
+  std::vector<int32_t> stack{organ};  // interaction start, not the step: allocation is fine
+  while (!stack.empty()) {
+    const int32_t o = stack.back();
+    stack.pop_back();
+    if (s.organ_awake[o] && s.organ_still_steps[o] == 0) continue;
+    s.organ_awake[o] = 1, s.organ_still_steps[o] = 0;
+    for (int32_t k = m.organ_neighbors_begin[o]; k < m.organ_neighbors_begin[o + 1]; ++k)
+      stack.push_back(m.organ_neighbors[k]);
+  }
+}
+
+namespace {
+void set_tool(const Model& m, State& s, const std::vector<int32_t>& verts, ToolMode mode) {
+  s.tool.mode = mode;
+  s.tool.verts.clear();
+  for (int32_t v : verts)
+    if (v >= 0 && v < m.nvert && m.vert_inv_mass[v] > 0) s.tool.verts.push_back(v);
+  std::sort(s.tool.verts.begin(), s.tool.verts.end());
+  s.tool.verts.erase(std::unique(s.tool.verts.begin(), s.tool.verts.end()), s.tool.verts.end());
+  for (int32_t v : s.tool.verts) wake(m, s, m.vert_organ[v]);
+  s.tool.reaction_N = {0, 0, 0};
+  s.tool.clamped = false;
+}
+}  // namespace
+
+void pull_force(const Model& m, State& s, const std::vector<int32_t>& verts,
+                const std::array<double, 3>& force_N) {
+  set_tool(m, s, verts, ToolMode::force);
+  s.tool.force_N = force_N;
+}
+
+void attach(const Model& m, State& s, const std::vector<int32_t>& verts,
+            const std::array<double, 3>& offset_m, int iterations) {
+  set_tool(m, s, verts, ToolMode::attach);
+  s.tool.offset_m = offset_m;
+  s.tool.attach_iterations = std::max(1, iterations);
+  s.tool.attach_progress = 0;
+  s.tool.anchor.resize(3 * s.tool.verts.size());
+  for (size_t q = 0; q < s.tool.verts.size(); ++q) {
+    const int32_t v = s.tool.verts[q];
+    s.tool.anchor[3 * q] = s.x[v], s.tool.anchor[3 * q + 1] = s.y[v], s.tool.anchor[3 * q + 2] = s.z[v];
+  }
+}
+
+void move_attachment(State& s, const std::array<double, 3>& offset_m) {
+  // The new offset is reached at once (a device moves continuously at 1 kHz).
+  s.tool.offset_m = offset_m;
+  s.tool.attach_progress = s.tool.attach_iterations;
+}
+
+void release(State& s) {
+  s.tool.mode = ToolMode::none;
+  s.tool.verts.clear();
+  s.tool.reaction_N = {0, 0, 0};
+  s.tool.clamped = false;
+}
+
+std::array<double, 3> tool_reaction(const State& s) { return s.tool.reaction_N; }
+
+double organ_volume(const Model& m, const State& s, int32_t organ) {
+  const OrganRange& r = m.organs[organ];
+  return enclosed_volume(s.x.data(), s.y.data(), s.z.data(), m.face_vert.data(), r.face_begin,
+                         r.face_end);
+}
+
+double total_volume(const Model& m, const State& s) {
+  double v = 0;
+  for (size_t o = 0; o < m.organs.size(); ++o) v += organ_volume(m, s, static_cast<int32_t>(o));
+  return v;
+}
+
+double max_displacement(const Model& m, const State& s) {
+  double d2 = 0;
+  for (int32_t v = 0; v < m.nvert; ++v) {
+    const double dx = s.x[v] - m.vert_rest_x[v], dy = s.y[v] - m.vert_rest_y[v],
+                 dz = s.z[v] - m.vert_rest_z[v];
+    d2 = std::max(d2, dx * dx + dy * dy + dz * dz);
+  }
+  return std::sqrt(d2);
+}
+
+double total_energy(const Model& m, const State& s) {
+  double e = 0;
+  for (int32_t v = 0; v < m.nvert; ++v)
+    e += 0.5 * m.vert_mass[v] * (s.vx[v] * s.vx[v] + s.vy[v] * s.vy[v] + s.vz[v] * s.vz[v]);
+  for (int32_t q = 0; q < m.nspring; ++q) {
+    const int32_t a = m.spring_a[q], b = m.spring_b[q];
+    const double dx = s.x[b] - s.x[a], dy = s.y[b] - s.y[a], dz = s.z[b] - s.z[a];
+    const double l = std::sqrt(dx * dx + dy * dy + dz * dz) - m.spring_length0[q];
+    e += 0.5 * m.spring_k[q] * l * l;
+  }
+  for (int32_t q = 0; q < m.nconn; ++q) {
+    const int32_t a = m.conn_a[q], b = m.conn_b[q];
+    const double dx = s.x[b] - s.x[a], dy = s.y[b] - s.y[a], dz = s.z[b] - s.z[a];
+    const double l = std::sqrt(dx * dx + dy * dy + dz * dz) - m.conn_rest[q];
+    e += 0.5 * m.conn_k[q] * l * l;
+  }
+  if (m.gravity)
+    for (int32_t v = 0; v < m.nvert; ++v)
+      e -= m.vert_mass[v] * (m.gravity_m_s2[0] * (s.x[v] - m.vert_rest_x[v]) +
+                             m.gravity_m_s2[1] * (s.y[v] - m.vert_rest_y[v]) +
+                             m.gravity_m_s2[2] * (s.z[v] - m.vert_rest_z[v]));
+  return e;
+}
+
+void compute_internal_forces(const Model& m, const State& s, Work& w) {
+  State awake = s;  // measurement helper (tests, reports): may allocate
+  std::fill(awake.organ_awake.begin(), awake.organ_awake.end(), 1);
+  internal_forces(m, awake, w);
+}
+
+void internal_force_and_torque(const Model& m, const State& s, Work& w,
+                               std::array<double, 3>& force, std::array<double, 3>& torque) {
+  compute_internal_forces(m, s, w);
+  force = {0, 0, 0};
+  torque = {0, 0, 0};
+  for (int32_t v = 0; v < m.nvert; ++v) {
+    force[0] += w.fx[v], force[1] += w.fy[v], force[2] += w.fz[v];
+    torque[0] += s.y[v] * w.fz[v] - s.z[v] * w.fy[v];
+    torque[1] += s.z[v] * w.fx[v] - s.x[v] * w.fz[v];
+    torque[2] += s.x[v] * w.fy[v] - s.y[v] * w.fx[v];
+  }
+}
+
+void organ_positions(const Model& m, const State& s, int32_t organ, std::vector<double>& out) {
+  const OrganRange& r = m.organs[organ];
+  out.assign(3 * static_cast<size_t>(r.source_vertex_count), 0.0);
+  for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
+    const size_t q = 3 * static_cast<size_t>(m.vert_source[v]);
+    out[q] = s.x[v], out[q + 1] = s.y[v], out[q + 2] = s.z[v];
+  }
+}
+
+int32_t global_vertex(const Model& m, int32_t organ, int32_t source_vertex) {
+  const OrganRange& r = m.organs[organ];
+  for (int32_t v = r.vert_begin; v < r.vert_end; ++v)
+    if (m.vert_source[v] == source_vertex) return v;
+  return -1;
+}
+
+int32_t find_organ(const Model& m, const std::string& name) {
+  for (size_t o = 0; o < m.organs.size(); ++o)
+    if (m.organs[o].name == name) return static_cast<int32_t>(o);
+  return -1;
+}
+
+}  // namespace softatlas::sim

@@ -1,0 +1,61 @@
+// Every shipped lesson, played headless with its passing and failing device script: the pass
+// script passes, the fail script fails with the reason, one PNG per step, report.json.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "softatlas/app/lesson_run.hpp"
+#include "test_util.hpp"
+
+namespace softatlas::app {
+namespace {
+
+struct Case {
+  const char* lesson;
+  const char* script;
+  bool passes;
+  const char* reason;  // expected in the failing step's reason
+};
+
+class LessonRun : public ::testing::TestWithParam<Case> {};
+
+TEST_P(LessonRun, PlaysHeadlessAndReports) {
+  const Case c = GetParam();
+  const std::string out = test::scratch(std::string(c.lesson) + "_" + c.script);
+  const Lesson lesson = load_lesson(test::lessons_dir() + "/" + c.lesson + ".yaml");
+  const DeviceScript script = load_device_script(test::lessons_dir() + "/scripts/" + c.lesson + "." + c.script + ".yaml");
+  RunOptions opt;
+  opt.width = 320;
+  opt.height = 180;
+  const LessonReport r = run_lesson(lesson, script, out, opt);
+  EXPECT_EQ(r.passed, c.passes);
+  std::ifstream in(out + "/report.json");
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(j.at("passed").get<bool>(), c.passes);
+  ASSERT_EQ(j.at("steps").size(), lesson.steps.size());
+  std::string reasons;
+  for (const auto& s : j.at("steps")) {
+    EXPECT_TRUE(std::filesystem::exists(out + "/" + s.at("png").get<std::string>()));
+    if (s.at("task").get<bool>()) reasons += s.at("reason").get<std::string>() + "; ";
+    if (s.at("kind") == "pull") {
+      EXPECT_GE(s.at("displacement_mm").get<double>(), 0.0);
+      EXPECT_GE(s.at("peak_force_N").get<double>(), 0.0);
+    }
+  }
+  EXPECT_NE(reasons.find(c.reason), std::string::npos) << reasons;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Shipped, LessonRun,
+    ::testing::Values(Case{"liver_mobility", "pass", true, "reached"},
+                      Case{"liver_mobility", "fail", false, "pulled too hard"},
+                      Case{"organ_quiz", "pass", true, "picked stomach"},
+                      Case{"organ_quiz", "fail", false, "picked liver, expected stomach"},
+                      Case{"kidney_anchor", "pass", true, "reached"},
+                      Case{"kidney_anchor", "fail", false, "pulled too little"}),
+    [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.lesson) + "_" + i.param.script; });
+
+}  // namespace
+}  // namespace softatlas::app

@@ -1,0 +1,152 @@
+// Lesson and device-script validation: one error per kind of bad input, each as
+// FILE:LINE:COLUMN: message, pointing at the offending node.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <regex>
+
+#include "softatlas/app/lesson.hpp"
+#include "softatlas/sim/error.hpp"
+#include "test_util.hpp"
+
+namespace softatlas::app {
+namespace {
+
+// A valid lesson whose organ set is the demo atlas (absolute path).
+std::string valid_lesson() {
+  return "lesson: Test lesson\n"                                  // line 1
+         "organ_set: " + test::atlas_dir() + "\n"                  // 2
+         "scene:\n"                                               // 3
+         "  organs: [liver]\n"                                    // 4
+         "  context: [kidney_left]\n"                             // 5
+         "  physics: {dt_s: 0.001}\n"                             // 6
+         "steps:\n"                                               // 7
+         "  - say: hello\n"                                       // 8
+         "  - pull: {organ: liver, region: inferior, min_displacement_mm: 5, max_force_N: 1}\n"  // 9
+         "  - pick: {organ: kidney_left}\n";                      // 10
+}
+
+std::string write(const std::string& name, const std::string& text) {
+  const std::string path = test::scratch("lesson_" + name) + "/" + name + ".yaml";
+  std::ofstream(path) << text;
+  return path;
+}
+
+// Loads and expects an InputError at LINE:COLUMN whose message contains `what`.
+void expect_error(const std::string& name, const std::string& text, int line, int column, const std::string& what) {
+  const std::string path = write(name, text);
+  try {
+    load_lesson(path);
+    FAIL() << name << ": no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.where(), path + ":" + std::to_string(line) + ":" + std::to_string(column)) << e.what();
+    EXPECT_NE(e.problem().find(what), std::string::npos) << e.what();
+    // One line, FILE:LINE:COLUMN: message
+    EXPECT_TRUE(std::regex_match(std::string(e.what()), std::regex(".+\\.yaml:[0-9]+:[0-9]+: [^\n]+"))) << e.what();
+  }
+}
+
+std::string replace(std::string s, const std::string& from, const std::string& to) {
+  const size_t at = s.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return s.replace(at, from.size(), to);
+}
+
+TEST(Lesson, ValidLessonLoads) {
+  const Lesson l = load_lesson(write("valid", valid_lesson()));
+  EXPECT_EQ(l.title, "Test lesson");
+  ASSERT_EQ(l.steps.size(), 3u);
+  EXPECT_EQ(l.steps[1].kind, StepKind::pull);
+  EXPECT_EQ(l.steps[1].pull.region, "inferior");
+  EXPECT_DOUBLE_EQ(l.steps[1].pull.max_force_N, 1.0);
+  EXPECT_EQ(l.task_count(), 2);
+  EXPECT_EQ(l.set.organs.size(), 4u);
+}
+
+TEST(Lesson, UnknownKey) {
+  expect_error("unknown_top", valid_lesson() + "colour: red\n", 11, 1, "unknown key 'colour'");
+  expect_error("unknown_pull", replace(valid_lesson(), "max_force_N: 1}", "max_force_N: 1, speed: 3}"), 9, 84,
+               "unknown key 'speed' in pull");
+}
+
+TEST(Lesson, WrongType) {
+  expect_error("wrong_type", replace(valid_lesson(), "max_force_N: 1}", "max_force_N: strong}"), 9, 81,
+               "'max_force_N' must be a number");
+  expect_error("wrong_steps", replace(replace(replace(valid_lesson(), "  - say: hello\n", ""),
+                                              "  - pull: {organ: liver, region: inferior, min_displacement_mm: 5, max_force_N: 1}\n", ""),
+                                      "  - pick: {organ: kidney_left}\n", "  hello: 3\n"),
+               8, 3, "'steps' must be a non-empty list");
+}
+
+TEST(Lesson, AbsentOrganFailsWithAClearMessage) {
+  expect_error("absent_organ", replace(valid_lesson(), "organs: [liver]", "organs: [liver, spleen]"), 4, 19,
+               "organ 'spleen' is not in the organ set");
+  expect_error("absent_in_step", replace(valid_lesson(), "pick: {organ: kidney_left}", "pick: {organ: pancreas}"), 10, 5,
+               "organ 'pancreas' is not in the organ set");
+  expect_error("not_in_scene", replace(valid_lesson(), "pick: {organ: kidney_left}", "pick: {organ: stomach}"), 10, 5,
+               "not in this lesson's scene");
+}
+
+TEST(Lesson, OutOfRangeValues) {
+  expect_error("negative_force", replace(valid_lesson(), "max_force_N: 1}", "max_force_N: -2}"), 9, 81,
+               "'max_force_N' must be in [0.001, 50], got -2");
+  expect_error("dt", replace(valid_lesson(), "dt_s: 0.001", "dt_s: 0.5"), 6, 19, "'dt_s' must be in");
+  expect_error("region", replace(valid_lesson(), "region: inferior", "region: middle"), 9, 34, "unknown region 'middle'");
+}
+
+TEST(Lesson, MissingRequiredKeyAndBadStructure) {
+  expect_error("missing_min", replace(valid_lesson(), "min_displacement_mm: 5, ", ""), 9, 11,
+               "pull needs 'min_displacement_mm'");
+  expect_error("two_actions", replace(valid_lesson(), "  - say: hello\n", "  - say: hello\n    wait: {seconds: 1}\n"), 8, 5,
+               "exactly one action");
+  expect_error("missing_set", replace(valid_lesson(), "organ_set: " + test::atlas_dir(), "organ_set: /no/such/set"), 2, 12,
+               "does not exist");
+}
+
+TEST(Lesson, YamlSyntaxErrorHasLineAndColumn) {
+  const std::string path = write("syntax", valid_lesson() + "  - pick: {organ: [liver\n");
+  try {
+    load_lesson(path);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(e.problem().find("YAML syntax"), std::string::npos) << e.what();
+    EXPECT_EQ(e.where().rfind(path + ":", 0), 0u) << e.what();
+  }
+}
+
+TEST(Lesson, ShippedLessonsAndScriptsValidate) {
+  for (const std::string name : {"liver_mobility", "organ_quiz", "kidney_anchor"}) {
+    const Lesson l = load_lesson(test::lessons_dir() + "/" + name + ".yaml");
+    for (const std::string kind : {"pass", "fail"}) {
+      const DeviceScript s = load_device_script(test::lessons_dir() + "/scripts/" + name + "." + kind + ".yaml");
+      EXPECT_NO_THROW(check_script_matches(s, l)) << name << "." << kind;
+    }
+  }
+}
+
+TEST(DeviceScript, ErrorsPointAtTheNode) {
+  const std::string dir = test::scratch("script");
+  auto load = [&](const std::string& text) {
+    const std::string path = dir + "/s.yaml";
+    std::ofstream(path) << text;
+    try {
+      load_device_script(path);
+    } catch (const InputError& e) {
+      return std::string(e.what()).substr(path.size());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(load("device: scripted\ntasks:\n  - pull:\n      timeline:\n        - {t_s: 0, offset_mm: [0, 0]}\n"),
+            ":5:31: 'offset_mm' must be a list of 3 numbers, e.g. [0, 0, -10]");
+  EXPECT_EQ(load("device: scripted\ntasks:\n  - pull:\n      timeline:\n        - {t_s: 1, offset_mm: [0, 0, 0]}\n"
+                 "        - {t_s: 0.5, offset_mm: [0, 0, 1]}\n"),
+            ":6:17: timeline times must increase, got 0.5 after 1");
+  EXPECT_EQ(load("device: phantom\ntasks: []\n"), ":1:9: device must be 'scripted' in a device script, got 'phantom'");
+  // A script that does not match the lesson's tasks.
+  const Lesson l = load_lesson(test::lessons_dir() + "/organ_quiz.yaml");
+  const DeviceScript wrong = load_device_script(test::lessons_dir() + "/scripts/kidney_anchor.pass.yaml");
+  EXPECT_THROW(check_script_matches(wrong, l), InputError);
+}
+
+}  // namespace
+}  // namespace softatlas::app

@@ -1,0 +1,116 @@
+// Organ sets: write, read back, validate; scene conversion to SI.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "softatlas/io/organ_set.hpp"
+#include "softatlas/io/scene.hpp"
+#include "softatlas/sim/error.hpp"
+#include "softatlas/sim/sim.hpp"
+
+namespace softatlas {
+namespace {
+namespace fs = std::filesystem;
+
+io::OrganSet small_set() {
+  io::OrganSet set;
+  io::OrganEntry liver;
+  liver.name = "liver";
+  liver.label = 5;
+  liver.mesh = io::read_mesh(std::string(SOFTATLAS_SOURCE_DIR) + "/data/meshes/liver_1000.obj");
+  liver.color = io::default_organ_color("liver");
+  liver.fixed_vertices = {1, 2, 3};
+  io::OrganEntry gb = liver;
+  gb.name = "gallbladder";
+  gb.label = 4;
+  for (size_t i = 0; i < gb.mesh.vertices.size(); i += 3) gb.mesh.vertices[i] += 200.0;
+  set.organs = {liver, gb};
+  set.connections = {{"liver", 10, "gallbladder", 20, 12.5, 3.0}};
+  set.provenance["tool"] = "softatlas test";
+  return set;
+}
+
+fs::path fresh(const std::string& name) {
+  const fs::path p = fs::temp_directory_path() / name;
+  fs::remove_all(p);
+  return p;
+}
+
+TEST(OrganSet, WriteThenReadBack) {
+  const fs::path dir = fresh("softatlas_set_rt");
+  io::write_organ_set(small_set(), dir.string(), {{"quality.json", "{}\n"}});
+  EXPECT_TRUE(fs::exists(dir / "organs/liver.ply"));
+  EXPECT_TRUE(fs::exists(dir / "quality.json"));
+  const io::OrganSet set = io::read_organ_set(dir.string());
+  ASSERT_EQ(set.organs.size(), 2u);
+  EXPECT_EQ(set.organs[0].mesh.vertices, small_set().organs[0].mesh.vertices);
+  EXPECT_EQ(set.organs[1].label, 4);
+  EXPECT_EQ(set.organs[0].fixed_vertices, (std::vector<int32_t>{1, 2, 3}));
+  ASSERT_EQ(set.connections.size(), 1u);
+  EXPECT_DOUBLE_EQ(set.connections[0].rest_length_mm, 12.5);
+  // an existing folder is not overwritten
+  EXPECT_THROW(io::write_organ_set(small_set(), dir.string()), InputError);
+}
+
+TEST(OrganSet, SceneIsInMetresAndHiddenOrgansStayOutUnlessConnected) {
+  const fs::path dir = fresh("softatlas_set_scene");
+  io::write_organ_set(small_set(), dir.string());
+  const io::OrganSet set = io::read_organ_set(dir.string());
+  io::SceneOptions opt;
+  opt.shown = {"liver"};
+  sim::SceneDesc scene = io::scene_from_organ_set(set, opt);
+  EXPECT_DOUBLE_EQ(scene.organs[0].vertices[0], 1e-3 * set.organs[0].mesh.vertices[0]);
+  EXPECT_DOUBLE_EQ(scene.connections[0].rest_length_m, 12.5e-3);
+  EXPECT_EQ(sim::compile(scene).organs.size(), 2u);  // gallbladder kept: connected
+  scene.connections.clear();
+  EXPECT_EQ(sim::compile(scene).organs.size(), 1u);
+  opt.shown = {"spleen"};
+  try {
+    io::scene_from_organ_set(set, opt);
+    FAIL() << "absent organ accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("organ 'spleen' is not in this organ set"), std::string::npos);
+  }
+}
+
+TEST(OrganSet, BadManifestsNameFileLineAndColumn) {
+  const fs::path dir = fresh("softatlas_set_bad");
+  io::write_organ_set(small_set(), dir.string());
+  const std::string yaml = (dir / "atlas.yaml").string();
+  std::string text;
+  {
+    std::ifstream in(yaml);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  auto expect_error = [&](const std::string& modified, const std::string& needle) {
+    std::ofstream(yaml) << modified;
+    try {
+      io::read_organ_set(dir.string());
+      ADD_FAILURE() << "accepted: " << needle;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error(text + "colour: red\n", "unknown key 'colour'");
+  std::string t2 = text;
+  t2.replace(t2.find("model: nmsm"), 11, "model: fem-ish");
+  expect_error(t2, "unknown model 'fem-ish'");
+  std::string t3 = text;
+  t3.replace(t3.find("young_modulus_pa: 4000"), 22, "young_modulus_pa: -4000");
+  expect_error(t3, "'young_modulus_pa' must be >= 0");
+  std::string t4 = text;
+  t4.replace(t4.find("organs/liver.ply"), 16, "organs/lover.ply");
+  expect_error(t4, "lover.ply: no such file");
+  std::ofstream(yaml) << text;
+  std::ofstream(dir / "connections.csv") << "organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness\nliver,10,spleen,2,1,1\n";
+  try {
+    io::read_organ_set(dir.string());
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("connections.csv:2: organ 'spleen' is not in atlas.yaml"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace softatlas

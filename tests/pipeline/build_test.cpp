@@ -1,0 +1,130 @@
+// The whole build through the command entry (cli_main) on the chest CTA crop: the organ set is
+// read back by io, re-checked independently, exported to glTF and read back with assimp.
+#include <assimp/Importer.hpp>
+#include <assimp/material.h>
+#include <assimp/scene.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "softatlas/io/organ_set.hpp"
+#include "softatlas/pipeline/build.hpp"
+#include "softatlas/pipeline/cli.hpp"
+#include "softatlas/pipeline/topology.hpp"
+#include "softatlas/sim/error.hpp"
+#include "softatlas/sim/geometry.hpp"
+#include "test_util.hpp"
+
+namespace softatlas::pipeline {
+namespace {
+using test::chest;
+namespace fs = std::filesystem;
+
+TEST(Build, ChestCropHeartAndPulmonaryArteryThroughTheCommand) {
+  test::Scratch tmp;
+  const std::string set_dir = tmp("set");
+  ASSERT_EQ(cli_main({"build", chest("ct_heart_crop.nii.gz"), "--labels",
+                      "heart=" + chest("heart_on_ct_heart_crop_grid.nii.gz"), "--labels",
+                      "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), "--budget", "heart=1200",
+                      "-q", "-o", set_dir}),
+            0);
+  const io::OrganSet set = io::read_organ_set(set_dir);
+  EXPECT_EQ(set.space, "RAS");
+  EXPECT_EQ(set.units, "mm");
+  ASSERT_EQ(set.organs.size(), 2u);
+  EXPECT_TRUE(fs::exists(set_dir + "/organs/heart.ply"));
+  EXPECT_TRUE(fs::exists(set_dir + "/organs/pulmonary_artery.ply"));
+  const io::OrganEntry* heart = set.find("heart");
+  ASSERT_NE(heart, nullptr);
+  EXPECT_EQ(heart->label, 51);
+  EXPECT_EQ(heart->face_budget, 1200);
+  // Mask volumes counted here, independently of the pipeline.
+  const Volume hm = read_volume(chest("heart_on_ct_heart_crop_grid.nii.gz"));
+  size_t n = 0;
+  for (float x : hm.values) n += x != 0;
+  for (const auto& e : set.organs) {
+    const SurfaceReport r = inspect_surface(e.mesh);
+    EXPECT_TRUE(r.closed()) << e.name;
+    EXPECT_TRUE(r.oriented()) << e.name;
+    EXPECT_GT(r.signed_volume_mm3, 0) << e.name;
+    EXPECT_NEAR(static_cast<double>(r.faces), e.face_budget, 0.02 * e.face_budget) << e.name;
+    EXPECT_GE(r.share_angle_ge_20, 0.99) << e.name;
+  }
+  EXPECT_NEAR(softatlas::sim::enclosed_volume(heart->mesh.vertices, heart->mesh.faces) / (n * 3.375), 1.0, 0.15);
+  // The heart and the pulmonary artery touch: springs, each between existing vertices.
+  EXPECT_GT(set.connections.size(), 10u);
+  for (const auto& c : set.connections) {
+    const io::OrganEntry* a = set.find(c.organ_a);
+    const io::OrganEntry* b = set.find(c.organ_b);
+    ASSERT_TRUE(a && b);
+    const double* p = &a->mesh.vertices[3 * c.vertex_a];
+    const double* q = &b->mesh.vertices[3 * c.vertex_b];
+    const double d = std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]));
+    EXPECT_NEAR(d, c.rest_length_mm, 1e-6);
+    EXPECT_LE(d, 4.0 + 1e-9);
+  }
+  const auto q = nlohmann::json::parse(io::read_text_file(set_dir + "/quality.json"));
+  EXPECT_EQ(q["organs"]["heart"]["faces_within_2pct"], true);
+  EXPECT_EQ(q["organs"]["heart"]["closed"], true);
+  EXPECT_TRUE(q["organs"]["heart"].contains("hausdorff_mm"));
+  EXPECT_EQ(set.provenance.at("ct_sha256").substr(0, 16), "4da078fe43c9aa4d");  // README checksum
+
+  std::string report;
+  EXPECT_TRUE(check_organ_set(set_dir, &report));
+  EXPECT_EQ(cli_main({"check", set_dir}), 0);
+
+  const std::string glb = tmp("atlas.glb");
+  ASSERT_EQ(cli_main({"export", set_dir, "-o", glb}), 0);
+  std::ifstream f(glb, std::ios::binary);
+  char magic[4];
+  f.read(magic, 4);
+  EXPECT_EQ(std::string(magic, 4), "glTF");
+  Assimp::Importer importer;
+  const aiScene* scene = importer.ReadFile(glb, 0);
+  ASSERT_NE(scene, nullptr) << importer.GetErrorString();
+  ASSERT_EQ(scene->mNumMeshes, 2u);
+  bool found_heart = false;
+  for (unsigned i = 0; i < scene->mNumMeshes; ++i) {
+    const aiMesh* m = scene->mMeshes[i];
+    const std::string name = m->mName.C_Str();
+    const io::OrganEntry* e = set.find(name);
+    ASSERT_NE(e, nullptr) << name;
+    EXPECT_EQ(m->mNumFaces, e->mesh.face_count());
+    aiColor4D c;
+    ASSERT_EQ(scene->mMaterials[m->mMaterialIndex]->Get(AI_MATKEY_BASE_COLOR, c), AI_SUCCESS);
+    EXPECT_NEAR(c.r, e->color[0], 1e-3);
+    EXPECT_NEAR(c.g, e->color[1], 1e-3);
+    found_heart |= name == "heart";
+  }
+  EXPECT_TRUE(found_heart);
+}
+
+TEST(Build, ConfigFileAndBudgetsFromYaml) {
+  test::Scratch tmp;
+  std::ofstream(tmp("build.yaml")) << "organs: [pulmonary_artery]\nbudget: {pulmonary_artery: 700}\n"
+                                      "smoothing_iterations: 15\n";
+  ASSERT_EQ(cli_main({"build", chest("ct_heart_crop.nii.gz"), "--labels",
+                      "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), "--config", tmp("build.yaml"), "-q",
+                      "-o", tmp("set")}),
+            0);
+  const io::OrganSet set = io::read_organ_set(tmp("set"));
+  ASSERT_EQ(set.organs.size(), 1u);
+  EXPECT_NEAR(static_cast<double>(set.organs[0].mesh.face_count()), 700, 14);
+  std::ofstream(tmp("bad.yaml")) << "organs: [pulmonary_artery]\nsmothing: 3\n";
+  try {
+    build_organ_set([&] {
+      BuildOptions o;
+      apply_build_config(tmp("bad.yaml"), &o);
+      return o;
+    }());
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad.yaml:2:1"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace softatlas::pipeline
