@@ -3,6 +3,7 @@
 // becomes one line on stderr and exit status 1.
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -45,9 +46,62 @@ int unavailable(const std::string& what, const char* option) {
   return 2;
 }
 
+// `softatlas demo [--out DIR]`: the main job on the embedded data. Each part that is built runs;
+// the paths of its results are printed at the end.
+int demo(const std::vector<std::string>& args) {
+  std::string out = "out/demo";
+  for (size_t i = 1; i < args.size(); ++i) {
+    if (args[i] == "--out" && i + 1 < args.size()) {
+      out = args[++i];
+    } else if (args[i] == "-h" || args[i] == "--help") {
+      std::puts("usage: softatlas demo [--out DIR]\n  builds the embedded sample CT into an organ set, "
+                "exports glTF, pulls a liver with every physics model and plays a lesson headless");
+      return 0;
+    } else {
+      throw softatlas::InputError(args[i], "unknown option (expected --out DIR)");
+    }
+  }
+  const std::string data = SOFTATLAS_DATA_DIR;
+  std::vector<std::string> results;
+  std::error_code ec;
+  std::filesystem::create_directories(out, ec);
+  std::fprintf(stderr, "== 1/4 physics: pull the paper-000 liver with every model\n");
+  int rc = softatlas::bench::cli_main({"sim", "demo", "--out", out + "/physics"});
+  if (rc != 0) return rc;
+  results.push_back(out + "/physics/deformation.svg (picture), results.json (feedback force, volume change)");
+#ifdef SOFTATLAS_HAVE_PIPELINE
+  std::fprintf(stderr, "== 2/4 pipeline: organ set from the embedded CT (data/sample)\n");
+  const std::string set = out + "/organ_set";
+  std::filesystem::remove_all(set, ec);  // the demo is re-runnable; build refuses existing folders
+  rc = softatlas::pipeline::cli_main({"build", data + "/sample/ct_heart_crop.nii.gz", "--labels",
+                                      "heart=" + data + "/sample/heart_on_ct_heart_crop_grid.nii.gz",
+                                      "--labels", "pulmonary_artery=" + data + "/sample/pulmonary_artery.nii.gz",
+                                      "-o", set});
+  if (rc != 0) return rc;
+  rc = softatlas::pipeline::cli_main({"check", set});
+  if (rc != 0) return rc;
+  std::fprintf(stderr, "== 3/4 export: glTF 2.0\n");
+  rc = softatlas::pipeline::cli_main({"export", set, "-o", out + "/atlas.glb"});
+  if (rc != 0) return rc;
+  results.push_back(set + "/ (atlas.yaml, organs/*.ply, connections.csv, quality.json)");
+  results.push_back(out + "/atlas.glb (binary glTF for other VR engines)");
+#endif
+#ifdef SOFTATLAS_HAVE_APP
+  std::fprintf(stderr, "== 4/4 lesson: liver_mobility played headless with its scripted device\n");
+  rc = softatlas::app::cli_main({"lesson", "run", data + "/lessons/liver_mobility.yaml", "--device",
+                                 data + "/lessons/scripts/liver_mobility.pass.yaml", "--out", out + "/lesson"});
+  if (rc != 0) return rc;
+  results.push_back(out + "/lesson/ (one PNG per step, report.json)");
+#endif
+  std::printf("\nSoftAtlas demo results:\n");
+  for (const std::string& r : results) std::printf("  %s\n", r.c_str());
+  return 0;
+}
+
 int dispatch(const std::vector<std::string>& args) {
   const std::string& cmd = args[0];
   const std::string sub = args.size() > 1 ? args[1] : "";
+  if (cmd == "demo") return demo(args);
   if (cmd == "bench" && (sub == "sim")) return softatlas::bench::cli_main(args);
   if (cmd == "sim") return softatlas::bench::cli_main(args);
   if (cmd == "bench" && (sub == "accuracy" || sub == "stability")) {

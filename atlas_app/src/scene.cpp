@@ -4,28 +4,22 @@
 #include <cmath>
 #include <limits>
 
+#include "softatlas/io/scene.hpp"
 #include "softatlas/sim/error.hpp"
 
 namespace softatlas::app {
 namespace {
 
+// The organ's material through the io mapping (io::to_sim_material, which also knows the
+// units of the set), then the lesson's overrides.
 sim::Material material_from_spec(const io::MaterialSpec& spec, const PhysicsSettings& physics,
                                  const std::string& where) {
-  sim::Material m;
-  const std::string model = physics.model.empty() ? spec.model : physics.model;
-  if (!sim::parse_model_kind(model, m.model))
-    throw InputError(where, "unknown physics model '" + model + "' (expected tmsm, cmsm, nmsm or flexion)");
-  m.young_modulus_pa = physics.young_modulus_pa > 0 ? physics.young_modulus_pa : spec.young_modulus_pa;
-  m.thickness_m = spec.thickness_m;
-  m.density_kg_m3 = spec.density_kg_m3;
-  m.damping_scale = physics.damping_scale >= 0 ? physics.damping_scale : spec.damping_scale;
-  m.elastica_a = spec.elastica_a;
-  m.elastica_b = physics.elastica_b >= 0 ? physics.elastica_b : spec.elastica_b;
-  m.elastica_p = spec.elastica_p;
-  m.tau_s = spec.tau_s;
-  m.tau_c = spec.tau_c;
-  m.flexion_stiffness = spec.flexion_stiffness;
-  m.volume_stiffness = spec.volume_stiffness;
+  io::MaterialSpec s = spec;
+  if (!physics.model.empty()) s.model = physics.model;
+  sim::Material m = io::to_sim_material(s, where);
+  if (physics.young_modulus_pa > 0) m.young_modulus_pa = physics.young_modulus_pa;
+  if (physics.damping_scale >= 0) m.damping_scale = physics.damping_scale;
+  if (physics.elastica_b >= 0) m.elastica_b = physics.elastica_b;
   return m;
 }
 

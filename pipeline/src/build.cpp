@@ -359,6 +359,9 @@ BuildResult build_organ_set(const BuildOptions& o) {
         std::to_string(j.budget));
     RemeshOptions ro = o.remesh;
     ro.face_budget = j.budget;
+    // Self-contact is expected of label surfaces (split non-manifold vertices) and is remeshed
+    // away; a mesh file that intersects itself is broken input and gets wrapped first.
+    ro.tolerate_self_contact = j.mesh_path.empty();
     const RemeshResult r = repair_and_remesh(stage3, ro, (j.mesh_path.empty() ? labels[j.source].source.path : j.mesh_path) + ": " + j.name);
     result.times.add("remesh", since(t0));
 

@@ -137,8 +137,9 @@ int cmd_build(const std::vector<std::string>& args) {
   const auto t0 = std::chrono::steady_clock::now();
   const BuildResult r = build_organ_set(cli.options());
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::fprintf(stderr, "[softatlas build] done: %zu organs, %zu connections in %.1f s -> %s\n", r.organs,
-               r.connections, s, r.output.c_str());
+  if (!cli.quiet)
+    std::fprintf(stderr, "[softatlas build] done: %zu organs, %zu connections in %.1f s -> %s\n", r.organs,
+                 r.connections, s, r.output.c_str());
   return 0;
 }
 

@@ -187,9 +187,8 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
   for (const auto& [name, pts] : seeds.organs) {
     Region r{label_id(name), 0, 0, true, 0, 0, seed_voxels(pts, name)};
     // Intensity model from the 5x5x5 neighbourhoods of all seeds together: mean and standard
-    // deviation of every sampled voxel. Measured alternatives (docs/pipeline.md): median/MAD
-    // (aorta 0.39, heart 0.68, liver 0.91), a window spanning the per-seed means (aorta leaked),
-    // the pooled within-neighbourhood sigma (heart 0.73).
+    // deviation of every sampled voxel. Measured alternatives are in docs/pipeline.md (median/MAD,
+    // a window spanning the per-seed means, the pooled within-neighbourhood sigma).
     double s1 = 0, s2 = 0, cnt = 0;
     for (size_t id : r.seeds) {
       const int i = static_cast<int>(id % d[0]), j = static_cast<int>((id / d[0]) % d[1]),
@@ -204,7 +203,9 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
           }
     }
     r.mu = s1 / cnt;
-    r.sigma = std::max(std::sqrt(std::max(s2 / cnt - r.mu * r.mu, 0.0)), 20.0);
+    // Floor: CT noise; ceiling: a spread wider than soft tissue's contrast would admit fat and
+    // muscle next to a vessel whose contrast fades along its length.
+    r.sigma = std::clamp(std::sqrt(std::max(s2 / cnt - r.mu * r.mu, 0.0)), 20.0, o.intensity_sigma_max_hu);
     r.lo = r.mu - o.intensity_sigma_scale * r.sigma;
     r.hi = r.mu + o.intensity_sigma_scale * r.sigma;
     std::fprintf(stderr, "[softatlas segment] %s: %zu seeds, mean %.0f, sigma %.0f, window [%.0f, %.0f]\n",

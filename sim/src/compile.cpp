@@ -258,6 +258,7 @@ Model compile(const SceneDesc& scene) {
   m.sleep_speed_m_s = scene.sleep_speed_m_s;
   m.sleep_steps = scene.sleep_steps;
   require(scene.threads >= 1 && scene.threads <= 64, "scene: threads", "expected 1..64");
+  if (scene.threads > 1) m.plan.push_back("explicit steps: organs spread over " + std::to_string(scene.threads) + " threads");
   m.threads = scene.threads;
 
   // ---- which organs: shown ones and everything connected to them (transitively) ----
@@ -448,6 +449,16 @@ Model compile(const SceneDesc& scene) {
                                             : 0.5 * std::sqrt(r.elastica_b) * r.curvature_unit_m;
       for (int32_t v = r.vert_begin; v < r.vert_end; ++v) hvert[v] = coef * kap[v];
     }
+    if (r.curvature) {
+      // The cap bounds how far the curvature term may rise above its largest rest value, so the
+      // rest shape stays force-free for any b (paper values of b can exceed the cap at rest).
+      double rest_max = 0.0;
+      for (int32_t s = r.spring_begin; s < r.spring_end; ++s) {
+        const double h = hvert[m.spring_a[s]] + hvert[m.spring_b[s]];
+        rest_max = std::max(rest_max, r.elastica_p == 1 ? h : h * h);
+      }
+      r.elastica_cap = mat.elastica_cap + rest_max;
+    }
     for (int32_t s = r.spring_begin; s < r.spring_end; ++s) {
       const int32_t a = m.spring_a[s], b = m.spring_b[s];
       double factor = 1.0;
@@ -487,7 +498,8 @@ Model compile(const SceneDesc& scene) {
       }
     }
     r.flex_end = m.nflex;
-    r.volume_stiffness = mat.model == ModelKind::flexion ? mat.volume_stiffness : 0.0;
+    // The volume constraint (paper 003) is a pass of its own: any surface model may use it.
+    r.volume_stiffness = mat.volume_stiffness;
 
     // fixed vertices
     m.vert_inv_mass.resize(m.nvert, 0.0);
@@ -534,6 +546,39 @@ Model compile(const SceneDesc& scene) {
     list.erase(std::unique(list.begin(), list.end()), list.end());
     m.organ_neighbors.insert(m.organ_neighbors.end(), list.begin(), list.end());
     m.organ_neighbors_begin.push_back(static_cast<int32_t>(m.organ_neighbors.size()));
+  }
+  // connected components of organs; connections sorted by component
+  {
+    std::vector<int32_t> comp(norg, -1);
+    int32_t ncomp = 0;
+    m.component_begin.push_back(0);
+    for (int32_t o = 0; o < norg; ++o) {
+      if (comp[o] >= 0) continue;
+      std::vector<int32_t> stack{o};
+      comp[o] = ncomp;
+      while (!stack.empty()) {
+        const int32_t u = stack.back();
+        stack.pop_back();
+        m.component_organs.push_back(u);
+        for (int32_t nb : cadj[u])
+          if (comp[nb] < 0) comp[nb] = ncomp, stack.push_back(nb);
+      }
+      ++ncomp;
+      m.component_begin.push_back(static_cast<int32_t>(m.component_organs.size()));
+    }
+    std::vector<int32_t> order(m.nconn);
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(), [&](int32_t a, int32_t b) {
+      return comp[m.vert_organ[m.conn_a[a]]] < comp[m.vert_organ[m.conn_a[b]]];
+    });
+    auto permute = [&](auto& v) {
+      auto copy = v;
+      for (int32_t i = 0; i < m.nconn; ++i) v[i] = copy[order[i]];
+    };
+    permute(m.conn_a), permute(m.conn_b), permute(m.conn_rest), permute(m.conn_k), permute(m.conn_d);
+    m.component_conn_begin.assign(ncomp + 1, 0);
+    for (int32_t i = 0; i < m.nconn; ++i) ++m.component_conn_begin[comp[m.vert_organ[m.conn_a[i]]] + 1];
+    for (int32_t c = 0; c < ncomp; ++c) m.component_conn_begin[c + 1] += m.component_conn_begin[c];
   }
   m.size_m = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
                        (hi[2] - lo[2]) * (hi[2] - lo[2]));

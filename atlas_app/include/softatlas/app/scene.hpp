@@ -29,7 +29,9 @@ struct PhysicsSettings {
 // Organ set (mm) -> SceneDesc (m). `shown` organs are simulated; `context` organs are added
 // with shown = false, so the core keeps them only if connected to a shown organ. Organs in
 // neither list are left out. Unknown names: InputError naming the organ.
-// (Candidate for io::scene_from_organ_set; kept here until the io library has one.)
+// io::scene_from_organ_set passes every organ of the set (unlisted ones with shown = false);
+// the app needs a third state (left out entirely) and the lesson's overrides, so it keeps this
+// converter and shares the material mapping (io::to_sim_material).
 sim::SceneDesc scene_from_organ_set(const io::OrganSet& set, const std::vector<std::string>& shown,
                                     const std::vector<std::string>& context,
                                     const PhysicsSettings& physics);

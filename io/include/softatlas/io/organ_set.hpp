@@ -28,10 +28,14 @@ struct MaterialSpec {
   double elastica_a = 1.0;           // a in eq 5
   double elastica_b = 0.1;           // b in eq 5 (paper 000 section IV uses 0.1)
   int elastica_p = 1;                // p in eq 5 (1 or 2)
-  double tau_s = 0.01;               // over-stretch ratio (CMSM, and NMSM of Table III); <0 = off
+  double tau_s = -1.0;               // over-stretch ratio (CMSM, NMSM of Table III); <0 = off.
+                                     // Off by default: on a surface mesh, projecting stretched
+                                     // springs back with compression unbounded crumples the organ
+                                     // inward (docs/physics.md)
   double tau_c = -1.0;               // over-compress ratio (CMSM); <0 = off
   double flexion_stiffness = 0.0;    // dihedral springs (paper 003), N*m per radian; 0 = off
-  double volume_stiffness = 0.0;     // volume constraint (paper 003 eq 25), 0..1; 0 = off
+  double volume_stiffness = 0.5;     // volume constraint (paper 003 eq 25), 0..1; 0 = off. On by
+                                     // default: surface springs alone do not hold the volume
 };
 
 struct OrganEntry {

@@ -23,6 +23,7 @@ Seeds read_seeds(const std::string& path);
 struct SegmentOptions {
   double intensity_sigma_scale = 2.5;  // accept up to this many seed-sigma from the seed mean
   double edge_weight = 1.0;            // weight of the gradient term in the path cost
+  double intensity_sigma_max_hu = 100.0;  // cap of the seed sigma
   double edge_sigma_hu = 30.0;         // intensity step that doubles the cost of a step
   int closing_radius = 1;              // voxels, morphological clean-up
 };

@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -50,9 +51,10 @@ struct Material {
   // L: we use b |kappa L|^p. The paper's organ experiments are in mm (L = 1e-3 m); its sphere is
   // dimensionless (L = 1). See docs/physics.md.
   double curvature_unit_m = 1e-3;
-  // Upper bound of the curvature term b |kappa L|^p of eq 5. A point load makes a cone tip whose
-  // discrete curvature grows without bound; uncapped, the elastica length (and with it the
-  // spring's stiffness) explodes and no explicit step is stable (docs/physics.md).
+  // How far the curvature term b |kappa L|^p of eq 5 may rise above its largest value in the rest
+  // shape. A point load makes a cone tip whose discrete curvature grows without bound; uncapped,
+  // the elastica length (and with it the spring's stiffness) explodes and no explicit step is
+  // stable (docs/physics.md).
   double elastica_cap = 2.0;
   double tau_s = -1.0;               // over-stretch ratio; < 0 = off
   double tau_c = -1.0;               // over-compress ratio; < 0 = off
@@ -89,7 +91,9 @@ struct SceneDesc {
   double cg_tolerance = 1e-8;       // relative residual; 0 = always run cg_iterations
   bool guard = true;                // stability guard on
   double max_tool_force_N = 10.0;   // the guard clamps tool forces to this
-  int max_substeps = 64;            // explicit sub-steps before the guard switches to implicit
+  // Explicit sub-steps the guard may take before it switches to implicit Euler; one implicit
+  // step with 25 CG iterations costs about as much as 10-15 explicit steps.
+  int max_substeps = 16;
   bool allow_sleep = true;          // resting organs sleep until touched
   double sleep_speed_m_s = 1e-6;    // below this speed for sleep_steps steps, an organ sleeps
   int sleep_steps = 200;
@@ -109,7 +113,7 @@ struct OrganRange {
   double elastica_a = 1.0, elastica_b = 0.0;
   int elastica_p = 1;
   double curvature_unit_m = 1e-3;
-  double elastica_cap = 2.0;
+  double elastica_cap = 2.0;        // absolute cap of the curvature term (rest maximum + material cap)
   double tau_s = -1.0, tau_c = -1.0;
   int compensation_iterations = 0;
   double volume_stiffness = 0.0;
@@ -147,6 +151,10 @@ struct Model {
   // organs
   std::vector<OrganRange> organs;
   std::vector<int32_t> organ_neighbors_begin, organ_neighbors;  // CSR: organs joined by connections
+  // Connected components of organs (independent linear systems for implicit Euler): organs
+  // component_organs[component_begin[c] .. component_begin[c+1]), connection springs
+  // [component_conn_begin[c], component_conn_begin[c+1]) (connections are sorted by component).
+  std::vector<int32_t> component_begin, component_organs, component_conn_begin;
   // settings
   Integrator integrator = Integrator::semi_implicit;
   double dt_s = 1e-3;
@@ -156,7 +164,7 @@ struct Model {
   double cg_tolerance = 1e-8;
   bool guard = true;
   double max_tool_force_N = 10.0;
-  int max_substeps = 64;
+  int max_substeps = 16;
   bool allow_sleep = true;
   double sleep_speed_m_s = 1e-6;
   int sleep_steps = 200;
@@ -200,15 +208,24 @@ struct State {
   int64_t guard_restores = 0;
 };
 
+class WorkerPool;  // sim/src/workers.hpp
+
+// A Work belongs to one stepping thread at a time (its worker pool is shared by copies).
 struct Work {
+  std::shared_ptr<WorkerPool> workers;       // model.threads > 1: organs stepped in parallel
   std::vector<double> fx, fy, fz;            // force accumulators
   std::vector<double> lap_x, lap_y, lap_z, area2, half_bk;  // curvature pass
   std::vector<double> px, py, pz;            // previous positions (compensation, attach)
   // implicit solver
   std::vector<double> rx, ry, rz, dx, dy, dz, qx, qy, qz, sx, sy, sz;  // CG vectors
-  std::vector<double> jac_alpha, jac_beta, jac_ux, jac_uy, jac_uz;    // per spring K blocks
+  // per spring blocks alpha I + beta u u^T of the implicit system, in float: the CG's matrix-vector
+  // product is bound by memory traffic, and 7 significant digits in the matrix change dv by about
+  // 1e-7 relative (docs/performance.md)
+  std::vector<float> jac_alpha, jac_beta, jac_ux, jac_uy, jac_uz;
   std::vector<double> jac_damp;
-  std::vector<double> cjac_alpha, cjac_beta, cjac_ux, cjac_uy, cjac_uz, cjac_damp;
+  std::vector<double> flex_grad;             // implicit: d theta / dx of each flexion spring (#*12)
+  std::vector<float> cjac_alpha, cjac_beta, cjac_ux, cjac_uy, cjac_uz;
+  std::vector<double> cjac_damp;
   std::vector<double> diag_x, diag_y, diag_z;  // Jacobi preconditioner
   std::vector<double> vx0, vy0, vz0;         // implicit: velocities at the start of the step
   std::vector<double> free_mask;             // 1 for vertices the integrator moves, else 0
