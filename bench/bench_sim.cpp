@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <numeric>
 
+#include "cli_util.hpp"
 #include "softatlas/bench/cli.hpp"
 #include "softatlas/io/mesh_io.hpp"
 #include "softatlas/io/organ_set.hpp"
@@ -22,22 +23,6 @@ namespace softatlas::bench {
 namespace {
 
 using nlohmann::json;
-
-// Parses with CLI11; returns -1 to continue, else the exit status (help printed, or usage error).
-int parse(CLI::App& app, const std::vector<std::string>& args, size_t skip) {
-  std::vector<std::string> rest(args.begin() + static_cast<long>(skip), args.end());
-  std::reverse(rest.begin(), rest.end());  // CLI11 takes a reversed vector
-  try {
-    app.parse(rest);
-  } catch (const CLI::CallForHelp& e) {
-    std::fputs(app.help().c_str(), stdout);
-    return 0;
-  } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "softatlas: %s\n%s", e.what(), app.help().c_str());
-    return 2;
-  }
-  return -1;
-}
 
 sim::OrganDesc body_from_mesh(const std::string& path, size_t index) {
   io::TriMesh mesh = io::read_mesh(path);
@@ -100,7 +85,7 @@ int bench_sim(const std::vector<std::string>& args) {
   app.add_flag("--json", json_out, "print one JSON object");
   app.add_flag("--no-gravity", no_gravity, "rest shape stays put (checks force-free rest)");
   app.add_flag("--no-guard", no_guard, "turn the stability guard off");
-  if (int rc = parse(app, args, 2); rc >= 0) return rc;
+  if (int rc = parse_args(app, args, 2); rc >= 0) return rc;
 
   sim::ModelKind model;
   if (!sim::parse_model_kind(model_name, model))
@@ -194,7 +179,7 @@ int sim_explain(const std::vector<std::string>& args) {
   app.add_option("--dt", dt, "time step (s)");
   app.add_flag("--gravity", gravity, "gravity on");
   app.add_flag("--no-guard", no_guard, "turn the stability guard off");
-  if (int rc = parse(app, args, 1); rc >= 0) return rc;
+  if (int rc = parse_args(app, args, 1); rc >= 0) return rc;
   io::SceneOptions opt;
   if (!sim::parse_integrator(integrator_name, opt.integrator))
     throw InputError("--integrator", "unknown integrator '" + integrator_name + "'");

@@ -13,6 +13,7 @@
 #include <chrono>
 #include <sstream>
 
+#include "cli_util.hpp"
 #include "softatlas/bench/cli.hpp"
 #include "softatlas/io/mesh_io.hpp"
 #include "softatlas/sim/sim.hpp"
@@ -97,17 +98,7 @@ int physics_demo(const std::vector<std::string>& args) {
   app.add_option("--out", out, "output folder");
   app.add_option("--pull-mm", pull_mm, "pull of the top face along [0, 1, 1] (mm)");
   app.add_option("--hold-steps", hold_steps, "steps (1 ms) the face is held after the 30 iterations")->check(CLI::Range(0, 1000000));
-  std::vector<std::string> rest(args.begin() + 2, args.end());
-  std::reverse(rest.begin(), rest.end());
-  try {
-    app.parse(rest);
-  } catch (const CLI::CallForHelp&) {
-    std::fputs(app.help().c_str(), stdout);
-    return 0;
-  } catch (const CLI::ParseError& e) {
-    std::fprintf(stderr, "softatlas: %s\n", e.what());
-    return 2;
-  }
+  if (int rc = parse_args(app, args, 2); rc >= 0) return rc;
   const io::TriMesh mesh = io::read_mesh(mesh_path);
   // top face (highest centroid) and the 20 lowest vertices held, as in the paper's setting
   size_t top = 0;
