@@ -120,6 +120,17 @@ void connection_forces(const Model& m, const State& s, Work& w) {
                                   s.vz.data(), nullptr, w.fx.data(), w.fy.data(), w.fz.data());
 }
 
+// One organ's springs (with its curvature pass) and flexion springs, added into work.f.
+void organ_internal_forces(const Model& m, const OrganRange& r, const State& s, Work& w) {
+  switch (spring_measure_kind(r)) {
+    case 0: organ_springs<0>(m, r, s, w); break;
+    case 1: curvature_pass(m, r, s, w); organ_springs<1>(m, r, s, w); break;
+    case 2: curvature_pass(m, r, s, w); organ_springs<2>(m, r, s, w); break;
+    default: organ_springs<3>(m, r, s, w); break;
+  }
+  if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w);
+}
+
 // All internal forces of awake organs into work.f (zeroed first unless the explicit update
 // already left them zero: it clears them as it consumes them, as bench-ref does).
 void internal_forces(const Model& m, const State& s, Work& w) {
@@ -129,17 +140,8 @@ void internal_forces(const Model& m, const State& s, Work& w) {
     std::fill(w.fz.begin(), w.fz.end(), 0.0);
   }
   w.forces_zero = false;
-  for (size_t o = 0; o < m.organs.size(); ++o) {
-    if (!s.organ_awake[o]) continue;
-    const OrganRange& r = m.organs[o];
-    switch (spring_measure_kind(r)) {
-      case 0: organ_springs<0>(m, r, s, w); break;
-      case 1: curvature_pass(m, r, s, w); organ_springs<1>(m, r, s, w); break;
-      case 2: curvature_pass(m, r, s, w); organ_springs<2>(m, r, s, w); break;
-      default: organ_springs<3>(m, r, s, w); break;
-    }
-    if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w);
-  }
+  for (size_t o = 0; o < m.organs.size(); ++o)
+    if (s.organ_awake[o]) organ_internal_forces(m, m.organs[o], s, w);
   connection_forces(m, s, w);
 }
 
@@ -388,14 +390,7 @@ void parallel_job(void* context, int t) {
         std::fill(w.fy.begin() + r.vert_begin, w.fy.begin() + r.vert_end, 0.0);
         std::fill(w.fz.begin() + r.vert_begin, w.fz.begin() + r.vert_end, 0.0);
       }
-      if (!s.organ_awake[o]) continue;
-      switch (spring_measure_kind(r)) {
-        case 0: organ_springs<0>(m, r, s, w); break;
-        case 1: curvature_pass(m, r, s, w); organ_springs<1>(m, r, s, w); break;
-        case 2: curvature_pass(m, r, s, w); organ_springs<2>(m, r, s, w); break;
-        default: organ_springs<3>(m, r, s, w); break;
-      }
-      if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w);
+      if (s.organ_awake[o]) organ_internal_forces(m, r, s, w);
     } else if (s.organ_awake[o]) {
       if (p.verlet) integrate_organ<true>(m, r, s, w, p.h, p.stats[t]);
       else integrate_organ<false>(m, r, s, w, p.h, p.stats[t]);
