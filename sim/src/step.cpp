@@ -457,8 +457,9 @@ IntegrateStats explicit_substep(const Model& m, State& s, Work& w, double h, boo
 // (elastica: curvature frozen over the step, k_e = k (a + h_a + h_b), L_e = l_e0 / (a + ...)).
 // The max(0, .) drops the indefinite compressive part so that CG sees an SPD matrix.
 // Flexion springs and the volume / compensation passes are treated explicitly.
+// Per spring: alpha and w = sqrt(beta) u, so the block is alpha I + w w^T (beta >= 0 always).
 struct SpringBlockArrays {
-  float *alpha, *beta, *ux, *uy, *uz;
+  float *alpha, *ux, *uy, *uz;
 };
 
 template <int P>
@@ -500,16 +501,16 @@ __attribute__((noinline)) void spring_blocks(int32_t begin, int32_t end, const i
     const double gx = h * f * ux + kx, gy = h * f * uy + ky, gz = h * f * uz + kz;
     rx[i] += gx, ry[i] += gy, rz[i] += gz;
     rx[j] -= gx, ry[j] -= gy, rz[j] -= gz;
+    const double sb = std::sqrt(std::max(0.0, kbeta + h * dq));
     B.alpha[q] = static_cast<float>(alpha);
-    B.beta[q] = static_cast<float>(kbeta + h * dq);
-    B.ux[q] = static_cast<float>(ux), B.uy[q] = static_cast<float>(uy), B.uz[q] = static_cast<float>(uz);
+    B.ux[q] = static_cast<float>(sb * ux), B.uy[q] = static_cast<float>(sb * uy), B.uz[q] = static_cast<float>(sb * uz);
   }
 }
 
 // q += sum over springs of B (p_i - p_j) at i and B (p_j - p_i) at j.
 __attribute__((noinline)) void apply_blocks(int32_t begin, int32_t end, const int32_t* __restrict sa,
                   const int32_t* __restrict sb, const float* __restrict alpha,
-                  const float* __restrict beta, const float* __restrict ux,
+                  const float* __restrict ux,
                   const float* __restrict uy, const float* __restrict uz,
                   const double* __restrict px, const double* __restrict py,
                   const double* __restrict pz, double* __restrict qx, double* __restrict qy,
@@ -517,7 +518,7 @@ __attribute__((noinline)) void apply_blocks(int32_t begin, int32_t end, const in
   for (int32_t q = begin; q < end; ++q) {
     const int32_t i = sa[q], j = sb[q];
     const double dx = px[i] - px[j], dy = py[i] - py[j], dz = pz[i] - pz[j];
-    const double bu = beta[q] * (dx * ux[q] + dy * uy[q] + dz * uz[q]);
+    const double bu = dx * ux[q] + dy * uy[q] + dz * uz[q];
     const double gx = alpha[q] * dx + bu * ux[q], gy = alpha[q] * dy + bu * uy[q],
                  gz = alpha[q] * dz + bu * uz[q];
     qx[i] += gx, qy[i] += gy, qz[i] += gz;
@@ -526,12 +527,11 @@ __attribute__((noinline)) void apply_blocks(int32_t begin, int32_t end, const in
 }
 
 void block_diagonal(int32_t begin, int32_t end, const int32_t* sa, const int32_t* sb,
-                    const float* alpha, const float* beta, const float* ux, const float* uy,
-                    const float* uz, Work& w) {
+                    const float* alpha, const float* ux, const float* uy, const float* uz, Work& w) {
   for (int32_t q = begin; q < end; ++q) {
     const int32_t i = sa[q], j = sb[q];
-    const double dx = alpha[q] + beta[q] * ux[q] * ux[q], dy = alpha[q] + beta[q] * uy[q] * uy[q],
-                 dz = alpha[q] + beta[q] * uz[q] * uz[q];
+    const double dx = alpha[q] + ux[q] * ux[q], dy = alpha[q] + uy[q] * uy[q],
+                 dz = alpha[q] + uz[q] * uz[q];
     w.diag_x[i] += dx, w.diag_y[i] += dy, w.diag_z[i] += dz;
     w.diag_x[j] += dx, w.diag_y[j] += dy, w.diag_z[j] += dz;
   }
@@ -614,12 +614,12 @@ void pcg_component(ImplicitSolve& S, int32_t comp) {
       if (!s.organ_awake[o]) continue;
       const OrganRange& r = m.organs[o];
       apply_blocks(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(), S.B.alpha,
-                   S.B.beta, S.B.ux, S.B.uy, S.B.uz, px, py, pz, qx, qy, qz);
+                   S.B.ux, S.B.uy, S.B.uz, px, py, pz, qx, qy, qz);
       for (int32_t f = r.flex_begin; f < r.flex_end; ++f)
         flex_add(m, w, f, h * h * m.flex_k[f] * flex_dot(m, w, f, px, py, pz), qx, qy, qz);
     }
     if (ce > cb)
-      apply_blocks(cb, ce, m.conn_a.data(), m.conn_b.data(), S.CB.alpha, S.CB.beta, S.CB.ux, S.CB.uy,
+      apply_blocks(cb, ce, m.conn_a.data(), m.conn_b.data(), S.CB.alpha, S.CB.ux, S.CB.uy,
                    S.CB.uz, px, py, pz, qx, qy, qz);
     double pq = 0.0;  // p is zero on frozen vertices, so their q does not count
     for (int32_t k = ob; k < oe; ++k) {
@@ -693,7 +693,7 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
     w.ry[v] = h * (w.fy[v] + g * m.gravity_m_s2[1]);
     w.rz[v] = h * (w.fz[v] + g * m.gravity_m_s2[2]);
   }
-  SpringBlockArrays B{w.jac_alpha.data(), w.jac_beta.data(), w.jac_ux.data(), w.jac_uy.data(),
+  SpringBlockArrays B{w.jac_alpha.data(), w.jac_ux.data(), w.jac_uy.data(),
                       w.jac_uz.data()};
   for (size_t o = 0; o < m.organs.size(); ++o) {
     if (!s.organ_awake[o]) continue;
@@ -711,7 +711,7 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
       default: run(std::integral_constant<int, 3>{}); break;
     }
   }
-  SpringBlockArrays CB{w.cjac_alpha.data(), w.cjac_beta.data(), w.cjac_ux.data(),
+  SpringBlockArrays CB{w.cjac_alpha.data(), w.cjac_ux.data(),
                        w.cjac_uy.data(), w.cjac_uz.data()};
   if (m.nconn)
     spring_blocks<0>(0, m.nconn, m.conn_a.data(), m.conn_b.data(), m.conn_rest.data(),
@@ -722,10 +722,10 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
     if (!s.organ_awake[o]) continue;
     const OrganRange& r = m.organs[o];
     block_diagonal(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(), B.alpha,
-                   B.beta, B.ux, B.uy, B.uz, w);
+                   B.ux, B.uy, B.uz, w);
   }
   if (m.nconn)
-    block_diagonal(0, m.nconn, m.conn_a.data(), m.conn_b.data(), CB.alpha, CB.beta, CB.ux, CB.uy,
+    block_diagonal(0, m.nconn, m.conn_a.data(), m.conn_b.data(), CB.alpha, CB.ux, CB.uy,
                    CB.uz, w);
   for (int32_t f = 0; f < m.nflex; ++f) {
     if (!s.organ_awake[m.vert_organ[m.flex_a[f]]]) continue;
@@ -831,8 +831,8 @@ Work make_work(const Model& m) {
                   &w.free_mask, &w.good_x, &w.good_y, &w.good_z, &w.good_vx, &w.good_vy,
                   &w.good_vz})
     v->assign(n, 0.0);
-  for (auto* v : {&w.jac_alpha, &w.jac_beta, &w.jac_ux, &w.jac_uy, &w.jac_uz}) v->assign(m.nspring, 0.0f);
-  for (auto* v : {&w.cjac_alpha, &w.cjac_beta, &w.cjac_ux, &w.cjac_uy, &w.cjac_uz}) v->assign(m.nconn, 0.0f);
+  for (auto* v : {&w.jac_alpha, &w.jac_ux, &w.jac_uy, &w.jac_uz}) v->assign(m.nspring, 0.0f);
+  for (auto* v : {&w.cjac_alpha, &w.cjac_ux, &w.cjac_uy, &w.cjac_uz}) v->assign(m.nconn, 0.0f);
   w.jac_damp.assign(m.nspring, 0.0);
   w.cjac_damp.assign(m.nconn, 0.0);
   w.flex_grad.assign(12 * static_cast<size_t>(m.nflex), 0.0);

@@ -221,10 +221,10 @@ struct Work {
   // per spring blocks alpha I + beta u u^T of the implicit system, in float: the CG's matrix-vector
   // product is bound by memory traffic, and 7 significant digits in the matrix change dv by about
   // 1e-7 relative (docs/performance.md)
-  std::vector<float> jac_alpha, jac_beta, jac_ux, jac_uy, jac_uz;
+  std::vector<float> jac_alpha, jac_ux, jac_uy, jac_uz;  // alpha, sqrt(beta) u
   std::vector<double> jac_damp;
   std::vector<double> flex_grad;             // implicit: d theta / dx of each flexion spring (#*12)
-  std::vector<float> cjac_alpha, cjac_beta, cjac_ux, cjac_uy, cjac_uz;
+  std::vector<float> cjac_alpha, cjac_ux, cjac_uy, cjac_uz;
   std::vector<double> cjac_damp;
   std::vector<double> diag_x, diag_y, diag_z;  // Jacobi preconditioner
   std::vector<double> vx0, vy0, vz0;         // implicit: velocities at the start of the step
