@@ -476,6 +476,9 @@ __attribute__((noinline)) void spring_blocks(int32_t begin, int32_t end, const i
   double* __restrict rx = w.rx.data();
   double* __restrict ry = w.ry.data();
   double* __restrict rz = w.rz.data();
+  double* __restrict dgx = w.diag_x.data();
+  double* __restrict dgy = w.diag_y.data();
+  double* __restrict dgz = w.diag_z.data();
   for (int32_t q = begin; q < end; ++q) {
     const int32_t i = sa[q], j = sb[q];
     const double dx = x[j] - x[i], dy = y[j] - y[i], dz = z[j] - z[i];
@@ -502,8 +505,13 @@ __attribute__((noinline)) void spring_blocks(int32_t begin, int32_t end, const i
     rx[i] += gx, ry[i] += gy, rz[i] += gz;
     rx[j] -= gx, ry[j] -= gy, rz[j] -= gz;
     const double sb = std::sqrt(std::max(0.0, kbeta + h * dq));
-    B.alpha[q] = static_cast<float>(alpha);
-    B.ux[q] = static_cast<float>(sb * ux), B.uy[q] = static_cast<float>(sb * uy), B.uz[q] = static_cast<float>(sb * uz);
+    const float fa = static_cast<float>(alpha), wx = static_cast<float>(sb * ux),
+                wy = static_cast<float>(sb * uy), wz = static_cast<float>(sb * uz);
+    B.alpha[q] = fa, B.ux[q] = wx, B.uy[q] = wy, B.uz[q] = wz;
+    // Jacobi diagonal of the same (rounded) block, at both ends
+    const double ddx = fa + double(wx) * wx, ddy = fa + double(wy) * wy, ddz = fa + double(wz) * wz;
+    dgx[i] += ddx, dgy[i] += ddy, dgz[i] += ddz;
+    dgx[j] += ddx, dgy[j] += ddy, dgz[j] += ddz;
   }
 }
 
@@ -526,16 +534,6 @@ __attribute__((noinline)) void apply_blocks(int32_t begin, int32_t end, const in
   }
 }
 
-void block_diagonal(int32_t begin, int32_t end, const int32_t* sa, const int32_t* sb,
-                    const float* alpha, const float* ux, const float* uy, const float* uz, Work& w) {
-  for (int32_t q = begin; q < end; ++q) {
-    const int32_t i = sa[q], j = sb[q];
-    const double dx = alpha[q] + ux[q] * ux[q], dy = alpha[q] + uy[q] * uy[q],
-                 dz = alpha[q] + uz[q] * uz[q];
-    w.diag_x[i] += dx, w.diag_y[i] += dy, w.diag_z[i] += dz;
-    w.diag_x[j] += dx, w.diag_y[j] += dy, w.diag_z[j] += dz;
-  }
-}
 
 // Flexion springs' Gauss-Newton blocks: g . p over the spring's four vertices, and q += c g.
 double flex_dot(const Model& m, const Work& w, int32_t f, const double* px, const double* py, const double* pz) {
@@ -661,6 +659,67 @@ void implicit_component_job(void* context, int t) {
   for (int32_t c : S.w->workers->components[t]) pcg_component(S, c);
 }
 
+struct ImplicitSetup {
+  const Model* m;
+  State* s;
+  Work* w;
+  double h;
+  SpringBlockArrays B;
+  int phase;
+};
+
+void implicit_setup_organ(ImplicitSetup& S, int32_t o) {
+  const Model& m = *S.m;
+  State& s = *S.s;
+  Work& w = *S.w;
+  const double h = S.h;
+  const OrganRange& r = m.organs[o];
+  const int32_t vb = r.vert_begin, ve = r.vert_end;
+  if (S.phase == 0) {
+    std::fill(w.fx.begin() + vb, w.fx.begin() + ve, 0.0);
+    std::fill(w.fy.begin() + vb, w.fy.begin() + ve, 0.0);
+    std::fill(w.fz.begin() + vb, w.fz.begin() + ve, 0.0);
+    if (!s.organ_awake[o]) return;
+    if (r.curvature) curvature_pass(m, r, s, w);
+    if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w, w.flex_grad.data());
+    return;
+  }
+  const double gx = m.gravity ? m.gravity_m_s2[0] : 0.0, gy = m.gravity ? m.gravity_m_s2[1] : 0.0,
+               gz = m.gravity ? m.gravity_m_s2[2] : 0.0;
+  for (int32_t v = vb; v < ve; ++v) {
+    const double mv = m.vert_mass[v];
+    w.rx[v] = h * (w.fx[v] + mv * gx), w.ry[v] = h * (w.fy[v] + mv * gy), w.rz[v] = h * (w.fz[v] + mv * gz);
+    w.diag_x[v] = w.diag_y[v] = w.diag_z[v] = mv;
+  }
+  if (!s.organ_awake[o]) return;
+  const double* d = r.damping ? m.spring_d.data() : nullptr;
+  auto run = [&](auto P) {
+    spring_blocks<decltype(P)::value>(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(),
+                                      m.spring_rest.data(), m.spring_k.data(), d, r.elastica_a, r.elastica_cap,
+                                      w.half_bk.data(), s, w, S.B, h);
+  };
+  switch (spring_measure_kind(r)) {
+    case 0: run(std::integral_constant<int, 0>{}); break;
+    case 1: run(std::integral_constant<int, 1>{}); break;
+    case 2: run(std::integral_constant<int, 2>{}); break;
+    default: run(std::integral_constant<int, 3>{}); break;
+  }
+  // Flexion springs in the matrix by their Gauss-Newton stiffness k g g^T (PSD): diagonal.
+  for (int32_t f = r.flex_begin; f < r.flex_end; ++f) {
+    const double* g = w.flex_grad.data() + 12 * f;
+    const int32_t v[4] = {m.flex_a[f], m.flex_b[f], m.flex_c[f], m.flex_d[f]};
+    const double c = h * h * m.flex_k[f];
+    for (int k = 0; k < 4; ++k)
+      w.diag_x[v[k]] += c * g[3 * k] * g[3 * k], w.diag_y[v[k]] += c * g[3 * k + 1] * g[3 * k + 1],
+          w.diag_z[v[k]] += c * g[3 * k + 2] * g[3 * k + 2];
+  }
+}
+
+void implicit_setup_job(void* context, int t) {
+  ImplicitSetup& S = *static_cast<ImplicitSetup*>(context);
+  for (int32_t o : S.w->workers->organs[t]) implicit_setup_organ(S, o);
+}
+
 IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
   const int32_t n = m.nvert;
   const bool attached = s.tool.mode == ToolMode::attach && !s.tool.verts.empty();
@@ -670,72 +729,30 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
     hold_attached(s, w, h, /*snap=*/true);
   }
   // rhs = h f0 + h^2 K v0, assembled with the blocks; f0 also holds flexion, tool and gravity.
+  // Per organ (in parallel when there are workers): phase 0 clears forces and computes curvature
+  // and flexion; then the tool; phase 1 sets rhs and diagonal and assembles the spring blocks.
   w.forces_zero = false;
-  std::fill(w.fx.begin(), w.fx.end(), 0.0);
-  std::fill(w.fy.begin(), w.fy.end(), 0.0);
-  std::fill(w.fz.begin(), w.fz.end(), 0.0);
-  for (size_t o = 0; o < m.organs.size(); ++o) {
-    if (!s.organ_awake[o]) continue;
-    const OrganRange& r = m.organs[o];
-    if (r.curvature) curvature_pass(m, r, s, w);
-    if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w, w.flex_grad.data());
-  }
-  apply_tool(m, s, w, /*reaction=*/false);
-  // Flexion springs in the system matrix by their Gauss-Newton stiffness k g g^T (PSD), and
-  // their h^2 K v0 term in the right-hand side.
-  for (int32_t f = 0; f < m.nflex; ++f)  // f0 += -h k g (g . v0): rhs gets h times that
-    if (s.organ_awake[m.vert_organ[m.flex_a[f]]])
-      flex_add(m, w, f, -h * m.flex_k[f] * flex_dot(m, w, f, s.vx.data(), s.vy.data(), s.vz.data()), w.fx.data(),
-               w.fy.data(), w.fz.data());
-  for (int32_t v = 0; v < n; ++v) {
-    const double g = m.gravity ? m.vert_mass[v] : 0.0;
-    w.rx[v] = h * (w.fx[v] + g * m.gravity_m_s2[0]);
-    w.ry[v] = h * (w.fy[v] + g * m.gravity_m_s2[1]);
-    w.rz[v] = h * (w.fz[v] + g * m.gravity_m_s2[2]);
-  }
-  SpringBlockArrays B{w.jac_alpha.data(), w.jac_ux.data(), w.jac_uy.data(),
-                      w.jac_uz.data()};
-  for (size_t o = 0; o < m.organs.size(); ++o) {
-    if (!s.organ_awake[o]) continue;
-    const OrganRange& r = m.organs[o];
-    const double* d = r.damping ? m.spring_d.data() : nullptr;
-    auto run = [&](auto P) {
-      spring_blocks<decltype(P)::value>(r.spring_begin, r.spring_end, m.spring_a.data(),
-                                        m.spring_b.data(), m.spring_rest.data(), m.spring_k.data(),
-                                        d, r.elastica_a, r.elastica_cap, w.half_bk.data(), s, w, B, h);
-    };
-    switch (spring_measure_kind(r)) {
-      case 0: run(std::integral_constant<int, 0>{}); break;
-      case 1: run(std::integral_constant<int, 1>{}); break;
-      case 2: run(std::integral_constant<int, 2>{}); break;
-      default: run(std::integral_constant<int, 3>{}); break;
+  const SpringBlockArrays B{w.jac_alpha.data(), w.jac_ux.data(), w.jac_uy.data(), w.jac_uz.data()};
+  const SpringBlockArrays CB{w.cjac_alpha.data(), w.cjac_ux.data(), w.cjac_uy.data(), w.cjac_uz.data()};
+  ImplicitSetup setup{&m, &s, &w, h, B, 0};
+  for (setup.phase = 0; setup.phase < 2; ++setup.phase) {
+    if (w.workers) {
+      w.workers->run(implicit_setup_job, &setup);
+    } else {
+      for (int32_t o = 0; o < static_cast<int32_t>(m.organs.size()); ++o) implicit_setup_organ(setup, o);
+    }
+    if (setup.phase == 0) {
+      apply_tool(m, s, w, /*reaction=*/false);
+      // Flexion springs' h^2 K v0 term: f0 += -h k g (g . v0) (rhs gets h times that).
+      for (int32_t f = 0; f < m.nflex; ++f)
+        if (s.organ_awake[m.vert_organ[m.flex_a[f]]])
+          flex_add(m, w, f, -h * m.flex_k[f] * flex_dot(m, w, f, s.vx.data(), s.vy.data(), s.vz.data()),
+                   w.fx.data(), w.fy.data(), w.fz.data());
     }
   }
-  SpringBlockArrays CB{w.cjac_alpha.data(), w.cjac_ux.data(),
-                       w.cjac_uy.data(), w.cjac_uz.data()};
   if (m.nconn)
     spring_blocks<0>(0, m.nconn, m.conn_a.data(), m.conn_b.data(), m.conn_rest.data(),
                      m.conn_k.data(), m.conn_d.data(), 1.0, 0.0, nullptr, s, w, CB, h);
-  // Jacobi preconditioner
-  for (int32_t v = 0; v < n; ++v) w.diag_x[v] = w.diag_y[v] = w.diag_z[v] = m.vert_mass[v];
-  for (size_t o = 0; o < m.organs.size(); ++o) {
-    if (!s.organ_awake[o]) continue;
-    const OrganRange& r = m.organs[o];
-    block_diagonal(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(), B.alpha,
-                   B.ux, B.uy, B.uz, w);
-  }
-  if (m.nconn)
-    block_diagonal(0, m.nconn, m.conn_a.data(), m.conn_b.data(), CB.alpha, CB.ux, CB.uy,
-                   CB.uz, w);
-  for (int32_t f = 0; f < m.nflex; ++f) {
-    if (!s.organ_awake[m.vert_organ[m.flex_a[f]]]) continue;
-    const double* g = w.flex_grad.data() + 12 * f;
-    const int32_t v[4] = {m.flex_a[f], m.flex_b[f], m.flex_c[f], m.flex_d[f]};
-    const double c = h * h * m.flex_k[f];
-    for (int k = 0; k < 4; ++k)
-      w.diag_x[v[k]] += c * g[3 * k] * g[3 * k], w.diag_y[v[k]] += c * g[3 * k + 1] * g[3 * k + 1],
-          w.diag_z[v[k]] += c * g[3 * k + 2] * g[3 * k + 2];
-  }
   // Frozen vertices: sleeping organs and held/fixed vertices keep dv = 0.
   const double* __restrict mask = w.free_mask.data();
   for (size_t o = 0; o < m.organs.size(); ++o)
