@@ -795,9 +795,6 @@ void snapshot(const Model& m, const State& s, Work& w) {
   std::copy(s.x.begin(), s.x.end(), w.good_x.begin());
   std::copy(s.y.begin(), s.y.end(), w.good_y.begin());
   std::copy(s.z.begin(), s.z.end(), w.good_z.begin());
-  std::copy(s.vx.begin(), s.vx.end(), w.good_vx.begin());
-  std::copy(s.vy.begin(), s.vy.end(), w.good_vy.begin());
-  std::copy(s.vz.begin(), s.vz.end(), w.good_vz.begin());
   w.good_time_s = s.time_s;
   w.good_step = s.step_count;
 }
@@ -844,14 +841,11 @@ Work make_work(const Model& m) {
   const size_t n = m.nvert;
   for (auto* v : {&w.fx, &w.fy, &w.fz, &w.lap_x, &w.lap_y, &w.lap_z, &w.area2, &w.half_bk, &w.px,
                   &w.py, &w.pz, &w.rx, &w.ry, &w.rz, &w.dx, &w.dy, &w.dz, &w.qx, &w.qy, &w.qz,
-                  &w.sx, &w.sy, &w.sz, &w.diag_x, &w.diag_y, &w.diag_z, &w.vx0, &w.vy0, &w.vz0,
-                  &w.free_mask, &w.good_x, &w.good_y, &w.good_z, &w.good_vx, &w.good_vy,
-                  &w.good_vz})
+                  &w.sx, &w.sy, &w.sz, &w.diag_x, &w.diag_y, &w.diag_z,
+                  &w.free_mask, &w.good_x, &w.good_y, &w.good_z})
     v->assign(n, 0.0);
   for (auto* v : {&w.jac_alpha, &w.jac_ux, &w.jac_uy, &w.jac_uz}) v->assign(m.nspring, 0.0f);
   for (auto* v : {&w.cjac_alpha, &w.cjac_ux, &w.cjac_uy, &w.cjac_uz}) v->assign(m.nconn, 0.0f);
-  w.jac_damp.assign(m.nspring, 0.0);
-  w.cjac_damp.assign(m.nconn, 0.0);
   w.flex_grad.assign(12 * static_cast<size_t>(m.nflex), 0.0);
   const int threads = std::min<int>(m.threads, static_cast<int>(m.organs.size()));
   if (threads > 1) {
@@ -888,7 +882,6 @@ Work make_work(const Model& m) {
       load[t] += ccost[c];
     }
   }
-  w.organ_volume.assign(m.organs.size(), 0.0);
   w.tool_target.reserve(3 * n);  // attach() may hold any number of vertices up to all
   for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 ? 1.0 : 0.0;
   return w;

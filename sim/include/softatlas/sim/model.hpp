@@ -222,22 +222,18 @@ struct Work {
   // product is bound by memory traffic, and 7 significant digits in the matrix change dv by about
   // 1e-7 relative (docs/performance.md)
   std::vector<float> jac_alpha, jac_ux, jac_uy, jac_uz;  // alpha, sqrt(beta) u
-  std::vector<double> jac_damp;
   std::vector<double> flex_grad;             // implicit: d theta / dx of each flexion spring (#*12)
   std::vector<float> cjac_alpha, cjac_ux, cjac_uy, cjac_uz;
-  std::vector<double> cjac_damp;
   std::vector<double> diag_x, diag_y, diag_z;  // Jacobi preconditioner
-  std::vector<double> vx0, vy0, vz0;         // implicit: velocities at the start of the step
   std::vector<double> free_mask;             // 1 for vertices the integrator moves, else 0
   std::vector<double> tool_target;           // attach: current target of each picked vertex
   bool measure_accel = false;                // fill StepReport::accel_sum (costs a sqrt/vertex)
   bool forces_zero = true;                   // fx/fy/fz are all zero (the explicit update clears them)
   bool mask_dirty = false;                   // free_mask must be recomputed
   // guard: last good state
-  std::vector<double> good_x, good_y, good_z, good_vx, good_vy, good_vz;
+  std::vector<double> good_x, good_y, good_z;  // restore zeroes velocities
   double good_time_s = 0.0;
   int64_t good_step = -1;
-  std::vector<double> organ_volume;          // volume pass
 };
 
 }  // namespace softatlas::sim
