@@ -204,6 +204,7 @@ struct IntegrateStats {
   double max_speed2 = 0.0;
   double checksum = 0.0;
   double accel_sum = 0.0;
+  int cg_iterations = 0;
 };
 
 // Explicit update of one organ's free vertices. Semi-implicit Euler: v += h (F/m + g),
@@ -457,83 +458,244 @@ IntegrateStats explicit_substep(const Model& m, State& s, Work& w, double h, boo
 // (elastica: curvature frozen over the step, k_e = k (a + h_a + h_b), L_e = l_e0 / (a + ...)).
 // The max(0, .) drops the indefinite compressive part so that CG sees an SPD matrix.
 // Flexion springs and the volume / compensation passes are treated explicitly.
-// Per spring: alpha and w = sqrt(beta) u, so the block is alpha I + w w^T (beta >= 0 always).
-struct SpringBlockArrays {
-  float *alpha, *ux, *uy, *uz;
-};
+// Per spring: alpha and w = sqrt(beta) u, so the block is alpha I + w w^T (beta >= 0 always),
+// stored as 4 floats (w_x, w_y, w_z, alpha).
+//
+// The CG runs in float on 4-float vertex vectors (x, y, z, 0): one 16-byte load per vertex
+// instead of three scattered doubles. Reductions are summed in double.
+using f4 = float __attribute__((vector_size(16)));
+using i4 = int32_t __attribute__((vector_size(16)));
+using d4 = double __attribute__((vector_size(32)));
 
+inline f4 load4(const float* p) {
+  f4 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline void store4(float* p, f4 v) { std::memcpy(p, &v, sizeof v); }
+using f8 = float __attribute__((vector_size(32)));
+using i8 = int32_t __attribute__((vector_size(32)));
+inline f8 load8(const float* p) {
+  f8 v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+inline f8 splat8(float a) { return f8{a, a, a, a, a, a, a, a}; }
+inline f8 join(f4 a, f4 b) { return __builtin_shufflevector(a, b, 0, 1, 2, 3, 4, 5, 6, 7); }
+inline f4 splat4(float a) { return f4{a, a, a, a}; }
+inline double hsum3(d4 v) { return v[0] + v[1] + v[2]; }
+// x . y over the first three lanes
+inline f4 dot3(f4 a, f4 b) {  // broadcast to every lane; lane 3 of a must be 0
+  f4 t = a * b;
+  t += __builtin_shufflevector(t, t, 1, 0, 3, 2);
+  t += __builtin_shufflevector(t, t, 2, 3, 0, 1);
+  return t;
+}
+constexpr i4 kXYZ = {-1, -1, -1, 0};
+constexpr i8 kXYZ8 = {-1, -1, -1, 0, -1, -1, -1, 0};
+constexpr double kCgFloatFloor = 1e-7;  // relative residual a float CG can reach
+constexpr int32_t kCgChunk = 256;       // springs per chunk of the vectorised block assembly
+
+// One spring's block and right-hand-side term at x0, v0. Returns g (added at i, subtracted at j)
+// and the block's diagonal dd; writes the block.
 template <int P>
-__attribute__((noinline)) void spring_blocks(int32_t begin, int32_t end, const int32_t* sa, const int32_t* sb,
-                   const double* rest, const double* k, const double* d, double a, double cap,
-                   const double* hv,
-                   const State& s, Work& w, SpringBlockArrays B, double h) {
+inline void spring_block(int32_t q, int32_t slot, int32_t i, int32_t j, const double* rest, const double* k,
+                         const double* d, double a, double cap, const double* hv, const State& s,
+                         double h, float* blk, double g[3], double dd[3]) {
+  const double dx = s.x[j] - s.x[i], dy = s.y[j] - s.y[i], dz = s.z[j] - s.z[i];
+  const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+  const double inv = 1.0 / (l > kTiny ? l : kTiny);
+  const double ux = dx * inv, uy = dy * inv, uz = dz * inv;
+  double factor = 1.0;
+  if constexpr (P == 1) factor = a + std::min(hv[i] + hv[j], cap);
+  if constexpr (P == 2) factor = a + std::min((hv[i] + hv[j]) * (hv[i] + hv[j]), cap);
+  if constexpr (P == 3) factor = a;
+  const double ke = k[q] * factor, Le = rest[q] / factor;
+  const double dq = d ? d[q] : 0.0;
+  const double c = std::max(0.0, 1.0 - Le * inv);
+  const double alpha = h * h * ke * c;
+  const double kbeta = h * h * ke - alpha;  // stiffness part of beta
+  // force at x0, v0 (eqs 6-7)
+  const double dvx = s.vx[j] - s.vx[i], dvy = s.vy[j] - s.vy[i], dvz = s.vz[j] - s.vz[i];
+  const double dvu = dvx * ux + dvy * uy + dvz * uz;
+  const double f = ke * (l - Le) + dq * dvu;
+  // h^2 K v0 term at i: +(alpha dv + kbeta u (u.dv)) (K pulls i toward j's motion)
+  g[0] = h * f * ux + alpha * dvx + kbeta * dvu * ux;
+  g[1] = h * f * uy + alpha * dvy + kbeta * dvu * uy;
+  g[2] = h * f * uz + alpha * dvz + kbeta * dvu * uz;
+  const double sb = std::sqrt(std::max(0.0, kbeta + h * dq));
+  const float fa = static_cast<float>(alpha), wx = static_cast<float>(sb * ux),
+              wy = static_cast<float>(sb * uy), wz = static_cast<float>(sb * uz);
+  blk[4 * slot] = wx, blk[4 * slot + 1] = wy, blk[4 * slot + 2] = wz, blk[4 * slot + 3] = fa;
+  // Jacobi diagonal of the same (rounded) block
+  dd[0] = fa + double(wx) * wx, dd[1] = fa + double(wy) * wy, dd[2] = fa + double(wz) * wz;
+}
+
+// An organ's edge springs in the CG's interleaved order (Work::cg_sa/cg_sb/cg_s), in chunks:
+// a vectorised pass computes each spring's block and right-hand-side term, then a scalar pass
+// scatters the terms to both ends (consecutive springs share no vertex).
+template <int P>
+__attribute__((noinline)) void organ_spring_blocks(const Model& m, const OrganRange& r, const double* d,
+                                                   const double* hv, const State& s, Work& w, double h) {
+  const int32_t* __restrict sa = w.cg_sa.data();
+  const int32_t* __restrict sb = w.cg_sb.data();
+  const int32_t* __restrict sp = w.cg_s.data();
+  const double* __restrict rest = m.spring_rest.data();
+  const double* __restrict kk = m.spring_k.data();
   const double* __restrict x = s.x.data();
   const double* __restrict y = s.y.data();
   const double* __restrict z = s.z.data();
   const double* __restrict vx = s.vx.data();
   const double* __restrict vy = s.vy.data();
   const double* __restrict vz = s.vz.data();
+  float* __restrict blk = w.jac.data();
+  double* __restrict tmp = w.cg_tmp.data();  // 6 x kCgChunk: g (3), diagonal (3)
   double* __restrict rx = w.rx.data();
   double* __restrict ry = w.ry.data();
   double* __restrict rz = w.rz.data();
   double* __restrict dgx = w.diag_x.data();
   double* __restrict dgy = w.diag_y.data();
   double* __restrict dgz = w.diag_z.data();
-  for (int32_t q = begin; q < end; ++q) {
-    const int32_t i = sa[q], j = sb[q];
-    const double dx = x[j] - x[i], dy = y[j] - y[i], dz = z[j] - z[i];
-    const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
-    const double inv = 1.0 / (l > kTiny ? l : kTiny);
-    const double ux = dx * inv, uy = dy * inv, uz = dz * inv;
-    double factor = 1.0;
-    if constexpr (P == 1) factor = a + std::min(hv[i] + hv[j], cap);
-    if constexpr (P == 2) factor = a + std::min((hv[i] + hv[j]) * (hv[i] + hv[j]), cap);
-    if constexpr (P == 3) factor = a;
-    const double ke = k[q] * factor, Le = rest[q] / factor;
-    const double dq = d ? d[q] : 0.0;
-    const double c = std::max(0.0, 1.0 - Le * inv);
-    const double alpha = h * h * ke * c;
-    const double kbeta = h * h * ke - alpha;  // stiffness part of beta
-    // force at x0, v0 (eqs 6-7)
-    const double dvx = vx[j] - vx[i], dvy = vy[j] - vy[i], dvz = vz[j] - vz[i];
-    const double dvu = dvx * ux + dvy * uy + dvz * uz;
-    const double f = ke * (l - Le) + dq * dvu;
-    // h^2 K v0 term at i: +(alpha dv + kbeta u (u.dv)) (K pulls i toward j's motion)
-    const double kx = alpha * dvx + kbeta * dvu * ux, ky = alpha * dvy + kbeta * dvu * uy,
-                 kz = alpha * dvz + kbeta * dvu * uz;
-    const double gx = h * f * ux + kx, gy = h * f * uy + ky, gz = h * f * uz + kz;
-    rx[i] += gx, ry[i] += gy, rz[i] += gz;
-    rx[j] -= gx, ry[j] -= gy, rz[j] -= gz;
-    const double sb = std::sqrt(std::max(0.0, kbeta + h * dq));
-    const float fa = static_cast<float>(alpha), wx = static_cast<float>(sb * ux),
-                wy = static_cast<float>(sb * uy), wz = static_cast<float>(sb * uz);
-    B.alpha[q] = fa, B.ux[q] = wx, B.uy[q] = wy, B.uz[q] = wz;
-    // Jacobi diagonal of the same (rounded) block, at both ends
-    const double ddx = fa + double(wx) * wx, ddy = fa + double(wy) * wy, ddz = fa + double(wz) * wz;
-    dgx[i] += ddx, dgy[i] += ddy, dgz[i] += ddz;
-    dgx[j] += ddx, dgy[j] += ddy, dgz[j] += ddz;
+  const double a = r.elastica_a, cap = r.elastica_cap, h2 = h * h;
+  for (int32_t c = r.spring_begin; c < r.spring_end; c += kCgChunk) {
+    const int32_t ce = std::min(r.spring_end, c + kCgChunk);
+#pragma omp simd
+    for (int32_t t = c; t < ce; ++t) {
+      const int32_t i = sa[t], j = sb[t], q = sp[t], k = t - c;
+      const double dx = x[j] - x[i], dy = y[j] - y[i], dz = z[j] - z[i];
+      const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
+      const double inv = 1.0 / (l > kTiny ? l : kTiny);
+      const double ux = dx * inv, uy = dy * inv, uz = dz * inv;
+      double factor = 1.0;
+      if constexpr (P == 1) factor = a + std::min(hv[i] + hv[j], cap);
+      if constexpr (P == 2) factor = a + std::min((hv[i] + hv[j]) * (hv[i] + hv[j]), cap);
+      if constexpr (P == 3) factor = a;
+      const double ke = kk[q] * factor, Le = rest[q] / factor;
+      const double dq = d ? d[q] : 0.0;
+      const double cc = 1.0 - Le * inv;
+      const double alpha = h2 * ke * (cc > 0.0 ? cc : 0.0);
+      const double kbeta = h2 * ke - alpha;  // stiffness part of beta
+      const double dvx = vx[j] - vx[i], dvy = vy[j] - vy[i], dvz = vz[j] - vz[i];
+      const double dvu = dvx * ux + dvy * uy + dvz * uz;
+      const double f = ke * (l - Le) + dq * dvu;  // eqs 6-7 at x0, v0
+      // h f u + h^2 K v0 at i (K pulls i toward j's motion)
+      tmp[k] = h * f * ux + alpha * dvx + kbeta * dvu * ux;
+      tmp[kCgChunk + k] = h * f * uy + alpha * dvy + kbeta * dvu * uy;
+      tmp[2 * kCgChunk + k] = h * f * uz + alpha * dvz + kbeta * dvu * uz;
+      const double bb = kbeta + h * dq;
+      const double sbeta = std::sqrt(bb > 0.0 ? bb : 0.0);
+      const float fa = static_cast<float>(alpha), wx = static_cast<float>(sbeta * ux),
+                  wy = static_cast<float>(sbeta * uy), wz = static_cast<float>(sbeta * uz);
+      blk[4 * t] = wx, blk[4 * t + 1] = wy, blk[4 * t + 2] = wz, blk[4 * t + 3] = fa;
+      // Jacobi diagonal of the same (rounded) block
+      tmp[3 * kCgChunk + k] = fa + double(wx) * wx;
+      tmp[4 * kCgChunk + k] = fa + double(wy) * wy;
+      tmp[5 * kCgChunk + k] = fa + double(wz) * wz;
+    }
+    for (int32_t t = c; t < ce; ++t) {
+      const int32_t i = sa[t], j = sb[t], k = t - c;
+      const double gx = tmp[k], gy = tmp[kCgChunk + k], gz = tmp[2 * kCgChunk + k];
+      const double ex = tmp[3 * kCgChunk + k], ey = tmp[4 * kCgChunk + k], ez = tmp[5 * kCgChunk + k];
+      rx[i] += gx, ry[i] += gy, rz[i] += gz;
+      rx[j] -= gx, ry[j] -= gy, rz[j] -= gz;
+      dgx[i] += ex, dgy[i] += ey, dgz[i] += ez;
+      dgx[j] += ex, dgy[j] += ey, dgz[j] += ez;
+    }
   }
 }
 
-// q += sum over springs of B (p_i - p_j) at i and B (p_j - p_i) at j.
-__attribute__((noinline)) void apply_blocks(int32_t begin, int32_t end, const int32_t* __restrict sa,
-                  const int32_t* __restrict sb, const float* __restrict alpha,
-                  const float* __restrict ux,
-                  const float* __restrict uy, const float* __restrict uz,
-                  const double* __restrict px, const double* __restrict py,
-                  const double* __restrict pz, double* __restrict qx, double* __restrict qy,
-                  double* __restrict qz) {
-  for (int32_t q = begin; q < end; ++q) {
-    const int32_t i = sa[q], j = sb[q];
-    const double dx = px[i] - px[j], dy = py[i] - py[j], dz = pz[i] - pz[j];
-    const double bu = dx * ux[q] + dy * uy[q] + dz * uz[q];
-    const double gx = alpha[q] * dx + bu * ux[q], gy = alpha[q] * dy + bu * uy[q],
-                 gz = alpha[q] * dz + bu * uz[q];
-    qx[i] += gx, qy[i] += gy, qz[i] += gz;
-    qx[j] -= gx, qy[j] -= gy, qz[j] -= gz;
+void connection_blocks(const Model& m, const State& s, Work& w, double h) {
+  for (int32_t q = 0; q < m.nconn; ++q) {
+    const int32_t i = m.conn_a[q], j = m.conn_b[q];
+    double g[3], dd[3];
+    spring_block<0>(q, q, i, j, m.conn_rest.data(), m.conn_k.data(), m.conn_d.data(), 1.0, 0.0, nullptr,
+                    s, h, w.cjac.data(), g, dd);
+    w.rx[i] += g[0], w.ry[i] += g[1], w.rz[i] += g[2];
+    w.rx[j] -= g[0], w.ry[j] -= g[1], w.rz[j] -= g[2];
+    for (int32_t v : {i, j}) w.diag_x[v] += dd[0], w.diag_y[v] += dd[1], w.diag_z[v] += dd[2];
   }
 }
 
+// One CG matrix-vector product over an organ: with Update, p = z + beta p first (z = inv r);
+// then q = M p on the organ's vertices, then q += blocks p over its springs. Returns p . q (mass
+// and spring energies). The springs run in the interleaved order of Work::cg_sa/cg_sb: four
+// streams from the four quarters of the organ's (row-sorted) springs, so consecutive springs
+// share no vertex and the read-modify-write chains on q overlap; the loop has no data-dependent
+// branch.
+template <bool Update>
+__attribute__((noinline)) double cg_apply_organ(int32_t vb, int32_t ve, int32_t sbeg, int32_t send,
+                                                const int32_t* __restrict sa, const int32_t* __restrict sb,
+                                                const float* __restrict blk, const float* __restrict mass,
+                                                const float* __restrict inv, const float* __restrict r,
+                                                float* __restrict p, float* __restrict q, float beta,
+                                                bool springs) {
+  const f4 vbeta = splat4(beta);
+  d4 pq = {0, 0, 0, 0};
+  for (int32_t v = vb; v < ve; ++v) {
+    f4 pv = load4(p + 4 * v);
+    if constexpr (Update) {
+      pv = load4(inv + 4 * v) * load4(r + 4 * v) + vbeta * pv;
+      store4(p + 4 * v, pv);
+    }
+    const f4 qv = mass[v] * pv;
+    store4(q + 4 * v, qv);
+    pq += __builtin_convertvector(qv * pv, d4);
+  }
+  if (!springs) return hsum3(pq);
+  // Two springs per 8-float register: lanes 0-3 the first, 4-7 the second (in-lane shuffles
+  // only). The scatter stays sequential, so two springs sharing a vertex still add correctly.
+  f8 e[2] = {splat8(0), splat8(0)};
+  auto two = [&](int32_t t, f8& acc) {
+    const int32_t i0 = sa[t], j0 = sb[t], i1 = sa[t + 1], j1 = sb[t + 1];
+    const f8 dv = join(load4(p + 4 * i0), load4(p + 4 * i1)) - join(load4(p + 4 * j0), load4(p + 4 * j1));
+    const f8 b = load8(blk + 4 * t);
+    f8 d = dv * b;  // lane 3 of dv is 0
+    d += __builtin_shufflevector(d, d, 1, 0, 3, 2, 5, 4, 7, 6);
+    d += __builtin_shufflevector(d, d, 2, 3, 0, 1, 6, 7, 4, 5);
+    const f8 al = __builtin_shufflevector(b, b, 3, 3, 3, 3, 7, 7, 7, 7);
+    const f8 wv = reinterpret_cast<f8>(reinterpret_cast<i8>(b) & kXYZ8);
+    const f8 g = al * dv + d * wv;
+    const f4 g0 = __builtin_shufflevector(g, g, 0, 1, 2, 3), g1 = __builtin_shufflevector(g, g, 4, 5, 6, 7);
+    store4(q + 4 * i0, load4(q + 4 * i0) + g0);
+    store4(q + 4 * j0, load4(q + 4 * j0) - g0);
+    store4(q + 4 * i1, load4(q + 4 * i1) + g1);
+    store4(q + 4 * j1, load4(q + 4 * j1) - g1);
+    acc += dv * g;
+  };
+  int32_t t = sbeg;
+  for (; t + 4 <= send; t += 4) two(t, e[0]), two(t + 2, e[1]);
+  f4 e4 = __builtin_shufflevector(e[0] + e[1], e[0] + e[1], 0, 1, 2, 3) +
+          __builtin_shufflevector(e[0] + e[1], e[0] + e[1], 4, 5, 6, 7);
+  for (; t < send; ++t) {
+    const int32_t i = sa[t], j = sb[t];
+    const f4 dv = load4(p + 4 * i) - load4(p + 4 * j);
+    const f4 b = load4(blk + 4 * t);
+    const f4 wv = reinterpret_cast<f4>(reinterpret_cast<i4>(b) & kXYZ);
+    const f4 g = __builtin_shufflevector(b, b, 3, 3, 3, 3) * dv + dot3(dv, b) * wv;
+    store4(q + 4 * i, load4(q + 4 * i) + g);
+    store4(q + 4 * j, load4(q + 4 * j) - g);
+    e4 += dv * g;
+  }
+  pq += __builtin_convertvector(e4, d4);
+  return hsum3(pq);
+}
+
+// Connection springs (both ends scattered): q += blocks p, returns p . blocks p.
+double cg_connections(int32_t begin, int32_t end, const int32_t* ca, const int32_t* cb,
+                      const float* blk, const float* p, float* q) {
+  d4 pq = {0, 0, 0, 0};
+  for (int32_t s = begin; s < end; ++s) {
+    const int32_t i = ca[s], j = cb[s];
+    const f4 dv = load4(p + 4 * i) - load4(p + 4 * j);
+    const f4 b = load4(blk + 4 * s);
+    const f4 wv = reinterpret_cast<f4>(reinterpret_cast<i4>(b) & kXYZ);
+    const f4 g = b[3] * dv + dot3(dv, b) * wv;
+    store4(q + 4 * i, load4(q + 4 * i) + g);
+    store4(q + 4 * j, load4(q + 4 * j) - g);
+    pq += __builtin_convertvector(dv * g, d4);
+  }
+  return hsum3(pq);
+}
 
 // Flexion springs' Gauss-Newton blocks: g . p over the spring's four vertices, and q += c g.
 double flex_dot(const Model& m, const Work& w, int32_t f, const double* px, const double* py, const double* pz) {
@@ -550,16 +712,52 @@ void flex_add(const Model& m, const Work& w, int32_t f, double c, double* qx, do
   for (int k = 0; k < 4; ++k) qx[v[k]] += c * g[3 * k], qy[v[k]] += c * g[3 * k + 1], qz[v[k]] += c * g[3 * k + 2];
 }
 
+// The same on the CG's 4-float vectors; returns the energy c (g . p)^2.
+double cg_flexion(const Model& m, const Work& w, int32_t f, double c, const float* p, float* q) {
+  const double* g = w.flex_grad.data() + 12 * f;
+  const int32_t v[4] = {m.flex_a[f], m.flex_b[f], m.flex_c[f], m.flex_d[f]};
+  double gp = 0;
+  for (int k = 0; k < 4; ++k)
+    gp += g[3 * k] * p[4 * v[k]] + g[3 * k + 1] * p[4 * v[k] + 1] + g[3 * k + 2] * p[4 * v[k] + 2];
+  for (int k = 0; k < 4; ++k)
+    for (int a = 0; a < 3; ++a) q[4 * v[k] + a] += static_cast<float>(c * gp * g[3 * k + a]);
+  return c * gp * gp;
+}
+
+// x += a p, r -= a q over 4-float vertex entries [b4, e4); adds r . z (z = inv r) to rz and
+// the residual over free vertices (inv != 0 exactly there) to rr. r is not masked: frozen
+// vertices' entries are never read through z or rr.
+__attribute__((noinline)) void cg_update(int32_t b4, int32_t e4, float a, const float* __restrict inv,
+                                         const float* __restrict p, const float* __restrict q,
+                                         float* __restrict x, float* __restrict r, double& rz, double& rr) {
+  // float partial sums over chunks of 256 entries (vectorised), chunks summed in double
+  double sz = 0.0, sr = 0.0;
+  for (int32_t c = b4; c < e4; c += 256) {
+    const int32_t ce = std::min(e4, c + 256);
+    float cz = 0.0f, cr = 0.0f;
+#pragma omp simd reduction(+ : cz, cr)
+    for (int32_t k = c; k < ce; ++k) {
+      x[k] += a * p[k];
+      const float rk = r[k] - a * q[k];
+      r[k] = rk;
+      const float rk2 = rk * rk;
+      cz += rk2 * inv[k];
+      cr += inv[k] != 0.0f ? rk2 : 0.0f;
+    }
+    sz += cz, sr += cr;
+  }
+  rz += sz, rr += sr;
+}
+
 struct ImplicitSolve {
   const Model* m;
   State* s;
   Work* w;
   double h;
-  SpringBlockArrays B, CB;
 };
 
-// Jacobi-preconditioned CG on the component's vertices (Work r = rhs, diag = diagonal, mask).
-// Vertex loops run over the component's organ ranges; reductions are per component.
+// Jacobi-preconditioned CG for dv on one connected component of organs (Work: rx = rhs,
+// diag = diagonal, free_mask). Vertex loops run over the component's organ ranges.
 void pcg_component(ImplicitSolve& S, int32_t comp) {
   const Model& m = *S.m;
   State& s = *S.s;
@@ -568,89 +766,128 @@ void pcg_component(ImplicitSolve& S, int32_t comp) {
   const int32_t ob = m.component_begin[comp], oe = m.component_begin[comp + 1];
   bool awake = false;
   for (int32_t k = ob; k < oe; ++k) awake = awake || s.organ_awake[m.component_organs[k]];
-  const double* __restrict mask = w.free_mask.data();
-  double* __restrict rx = w.rx.data();
-  double* __restrict ry = w.ry.data();
-  double* __restrict rz = w.rz.data();
-  double* __restrict px = w.dx.data();
-  double* __restrict py = w.dy.data();
-  double* __restrict pz = w.dz.data();
-  double* __restrict qx = w.qx.data();
-  double* __restrict qy = w.qy.data();
-  double* __restrict qz = w.qz.data();
-  double* __restrict xx = w.sx.data();
-  double* __restrict xy = w.sy.data();
-  double* __restrict xz = w.sz.data();
-  const double* __restrict mass = m.vert_mass.data();
+  float* __restrict r = w.cg_r.data();
+  float* __restrict p = w.cg_p.data();
+  float* __restrict q = w.cg_q.data();
+  float* __restrict x = w.cg_x.data();
+  float* __restrict inv = w.cg_inv.data();
+  float* __restrict b = w.cg_b.data();
   // Inverse Jacobi diagonal with the mask folded in: z = r * inv is zero on frozen vertices, so
-  // p and dv stay zero there without a masking pass per iteration.
-  double* __restrict ix = w.diag_x.data();
-  double* __restrict iy = w.diag_y.data();
-  double* __restrict iz = w.diag_z.data();
-  double rz_old = 0.0, rr0 = 0.0;
+  // p and dv stay zero there; the residual is masked once per iteration through lane 3.
+  int32_t& done = w.cg_done[comp];
+  done = 0;
+  // The right-hand side is scaled to unit norm: the float iteration then works on numbers near 1
+  // whatever the units (h m g is about 1e-8 N s here), far from float's underflow.
+  double rr0 = 0.0;
   for (int32_t k = ob; k < oe; ++k) {
-    const OrganRange& r = m.organs[m.component_organs[k]];
-#pragma omp simd reduction(+ : rz_old, rr0)
-    for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
-      const double mk = mask[v];
-      ix[v] = mk / ix[v], iy[v] = mk / iy[v], iz[v] = mk / iz[v];
-      rx[v] *= mk, ry[v] *= mk, rz[v] *= mk;
-      xx[v] = 0.0, xy[v] = 0.0, xz[v] = 0.0;
-      px[v] = rx[v] * ix[v], py[v] = ry[v] * iy[v], pz[v] = rz[v] * iz[v];
-      qx[v] = mass[v] * px[v], qy[v] = mass[v] * py[v], qz[v] = mass[v] * pz[v];
-      rz_old += rx[v] * px[v] + ry[v] * py[v] + rz[v] * pz[v];
-      rr0 += rx[v] * rx[v] + ry[v] * ry[v] + rz[v] * rz[v];
+    const OrganRange& o = m.organs[m.component_organs[k]];
+    for (int32_t v = o.vert_begin; v < o.vert_end; ++v)
+      rr0 += w.free_mask[v] * (w.rx[v] * w.rx[v] + w.ry[v] * w.ry[v] + w.rz[v] * w.rz[v]);
+  }
+  const double norm_b = std::sqrt(rr0);
+  const double scale = norm_b > 0 && std::isfinite(norm_b) ? 1.0 / norm_b : 0.0;
+  double rz_old = 0.0;
+  rr0 = 0.0;
+  for (int32_t k = ob; k < oe; ++k) {
+    const OrganRange& o = m.organs[m.component_organs[k]];
+    for (int32_t v = o.vert_begin; v < o.vert_end; ++v) {
+      const double mk = w.free_mask[v];
+      const double gx = scale * mk * w.rx[v], gy = scale * mk * w.ry[v], gz = scale * mk * w.rz[v];
+      const double ix = mk / w.diag_x[v], iy = mk / w.diag_y[v], iz = mk / w.diag_z[v];
+      store4(inv + 4 * v, f4{float(ix), float(iy), float(iz), float(mk)});
+      const f4 rv = {float(gx), float(gy), float(gz), 0.0f};
+      store4(r + 4 * v, rv);
+      store4(b + 4 * v, rv);
+      store4(x + 4 * v, splat4(0)), store4(p + 4 * v, splat4(0)), store4(q + 4 * v, splat4(0));
+      rz_old += double(rv[0]) * rv[0] * float(ix) + double(rv[1]) * rv[1] * float(iy) +
+                double(rv[2]) * rv[2] * float(iz);
+      rr0 += double(rv[0]) * rv[0] + double(rv[1]) * rv[1] + double(rv[2]) * rv[2];
     }
   }
   if (!awake) return;
-  const double tol2 = m.cg_tolerance * m.cg_tolerance * rr0;
+  // A float CG cannot reduce the residual much below float precision (kCgFloatFloor). With the
+  // default tolerance it stops there. Asked for more (cg_tolerance below the floor, e.g. 0 =
+  // "always run cg_iterations"), it restarts from the true residual b - A x instead of iterating
+  // on: the recursive residual would sink into denormals, where its products lose all precision
+  // and the iteration diverges. A restart costs one matrix-vector product, like an iteration, and
+  // counts as one.
+  const bool restarts = m.cg_tolerance < kCgFloatFloor;
+  const double tol = std::max(m.cg_tolerance, kCgFloatFloor);
+  const double tol2 = tol * tol * rr0;
   const int32_t cb = m.component_conn_begin[comp], ce = m.component_conn_begin[comp + 1];
-  for (int it = 0; it < m.cg_iterations && rr0 > 0; ++it) {
-    // q = M p was set with p; add the springs' blocks.
+  // q = A p (Update: p = z + beta p first) over the component; returns p . A p
+  auto apply = [&](bool update, float* pp, double beta) {
+    double pq = 0.0;
+    for (int32_t k = ob; k < oe; ++k) {
+      const int32_t o = m.component_organs[k];
+      const OrganRange& g = m.organs[o];
+      const bool springs = s.organ_awake[o] != 0;
+      const float* blk = w.jac.data();
+      const int32_t* sa = w.cg_sa.data();
+      const int32_t* sbb = w.cg_sb.data();
+      pq += update ? cg_apply_organ<true>(g.vert_begin, g.vert_end, g.spring_begin, g.spring_end, sa, sbb,
+                                          blk, w.cg_mass.data(), inv, r, pp, q, static_cast<float>(beta), springs)
+                   : cg_apply_organ<false>(g.vert_begin, g.vert_end, g.spring_begin, g.spring_end, sa, sbb,
+                                           blk, w.cg_mass.data(), inv, r, pp, q, 0.0f, springs);
+    }
+    if (ce > cb) pq += cg_connections(cb, ce, m.conn_a.data(), m.conn_b.data(), w.cjac.data(), pp, q);
     for (int32_t k = ob; k < oe; ++k) {
       const int32_t o = m.component_organs[k];
       if (!s.organ_awake[o]) continue;
-      const OrganRange& r = m.organs[o];
-      apply_blocks(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(), S.B.alpha,
-                   S.B.ux, S.B.uy, S.B.uz, px, py, pz, qx, qy, qz);
-      for (int32_t f = r.flex_begin; f < r.flex_end; ++f)
-        flex_add(m, w, f, h * h * m.flex_k[f] * flex_dot(m, w, f, px, py, pz), qx, qy, qz);
+      for (int32_t f = m.organs[o].flex_begin; f < m.organs[o].flex_end; ++f)
+        pq += cg_flexion(m, w, f, h * h * m.flex_k[f], pp, q);
     }
-    if (ce > cb)
-      apply_blocks(cb, ce, m.conn_a.data(), m.conn_b.data(), S.CB.alpha, S.CB.ux, S.CB.uy,
-                   S.CB.uz, px, py, pz, qx, qy, qz);
-    double pq = 0.0;  // p is zero on frozen vertices, so their q does not count
-    for (int32_t k = ob; k < oe; ++k) {
-      const OrganRange& r = m.organs[m.component_organs[k]];
-#pragma omp simd reduction(+ : pq)
-      for (int32_t v = r.vert_begin; v < r.vert_end; ++v) pq += px[v] * qx[v] + py[v] * qy[v] + pz[v] * qz[v];
+    return pq;
+  };
+  double beta = 0.0;
+  bool restart = false;
+  for (int it = 0; it < m.cg_iterations && rr0 > 0; ++it) {
+    ++done;
+    if (restart) {  // r = b - A x, p = 0 (the next sweep sets p = z)
+      apply(false, x, 0.0);
+      d4 rz = {0, 0, 0, 0};
+      for (int32_t k = ob; k < oe; ++k) {
+        const OrganRange& o = m.organs[m.component_organs[k]];
+        for (int32_t v = o.vert_begin; v < o.vert_end; ++v) {
+          const f4 iv = load4(inv + 4 * v);
+          const f4 rv = (load4(b + 4 * v) - load4(q + 4 * v)) * __builtin_shufflevector(iv, iv, 3, 3, 3, 3);
+          store4(r + 4 * v, rv);
+          store4(p + 4 * v, splat4(0));
+          const d4 rd = __builtin_convertvector(rv, d4);
+          rz += rd * rd * __builtin_convertvector(iv, d4);
+        }
+      }
+      rz_old = hsum3(rz);
+      beta = 0.0;
+      restart = false;
+      if (!(rz_old > 0) || !std::isfinite(rz_old)) break;  // solved exactly (or lost): keep x
+      continue;
     }
-    if (!(pq > 0)) break;
+    // p = z + beta p and q = A p, organ by organ, then the connections and flexion springs.
+    const double pq = apply(true, p, beta);
     const double alpha = rz_old / pq;
+    if (!(pq > 0) || !std::isfinite(alpha)) {
+      if (!restarts) break;
+      restart = true;
+      continue;
+    }
     double rz_new = 0.0, rr = 0.0;
     for (int32_t k = ob; k < oe; ++k) {
-      const OrganRange& r = m.organs[m.component_organs[k]];
-#pragma omp simd reduction(+ : rz_new, rr)
-      for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
-        xx[v] += alpha * px[v], xy[v] += alpha * py[v], xz[v] += alpha * pz[v];
-        rx[v] -= alpha * qx[v], ry[v] -= alpha * qy[v], rz[v] -= alpha * qz[v];
-        rz_new += rx[v] * rx[v] * ix[v] + ry[v] * ry[v] * iy[v] + rz[v] * rz[v] * iz[v];
-        rr += mask[v] * (rx[v] * rx[v] + ry[v] * ry[v] + rz[v] * rz[v]);
-      }
+      const OrganRange& o = m.organs[m.component_organs[k]];
+      cg_update(4 * o.vert_begin, 4 * o.vert_end, static_cast<float>(alpha), inv, p, q, x, r, rz_new, rr);
     }
-    if (rr <= tol2) break;
-    const double beta = rz_new / rz_old;
+    if (rr <= tol2 || !(rz_new > 0) || !std::isfinite(rz_new)) {
+      if (!restarts) break;
+      restart = true;
+      continue;
+    }
+    beta = rz_new / rz_old;
     rz_old = rz_new;
-    for (int32_t k = ob; k < oe; ++k) {
-      const OrganRange& r = m.organs[m.component_organs[k]];
-#pragma omp simd
-      for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
-        px[v] = rx[v] * ix[v] + beta * px[v];
-        py[v] = ry[v] * iy[v] + beta * py[v];
-        pz[v] = rz[v] * iz[v] + beta * pz[v];
-        qx[v] = mass[v] * px[v], qy[v] = mass[v] * py[v], qz[v] = mass[v] * pz[v];
-      }
-    }
+  }
+  const f4 back = splat4(static_cast<float>(norm_b));
+  for (int32_t k = ob; k < oe; ++k) {
+    const OrganRange& o = m.organs[m.component_organs[k]];
+    for (int32_t v = o.vert_begin; v < o.vert_end; ++v) store4(x + 4 * v, back * load4(x + 4 * v));
   }
 }
 
@@ -664,7 +901,6 @@ struct ImplicitSetup {
   State* s;
   Work* w;
   double h;
-  SpringBlockArrays B;
   int phase;
 };
 
@@ -693,16 +929,12 @@ void implicit_setup_organ(ImplicitSetup& S, int32_t o) {
   }
   if (!s.organ_awake[o]) return;
   const double* d = r.damping ? m.spring_d.data() : nullptr;
-  auto run = [&](auto P) {
-    spring_blocks<decltype(P)::value>(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(),
-                                      m.spring_rest.data(), m.spring_k.data(), d, r.elastica_a, r.elastica_cap,
-                                      w.half_bk.data(), s, w, S.B, h);
-  };
+  const double* hv = w.half_bk.data();
   switch (spring_measure_kind(r)) {
-    case 0: run(std::integral_constant<int, 0>{}); break;
-    case 1: run(std::integral_constant<int, 1>{}); break;
-    case 2: run(std::integral_constant<int, 2>{}); break;
-    default: run(std::integral_constant<int, 3>{}); break;
+    case 0: organ_spring_blocks<0>(m, r, d, hv, s, w, h); break;
+    case 1: organ_spring_blocks<1>(m, r, d, hv, s, w, h); break;
+    case 2: organ_spring_blocks<2>(m, r, d, hv, s, w, h); break;
+    default: organ_spring_blocks<3>(m, r, d, hv, s, w, h); break;
   }
   // Flexion springs in the matrix by their Gauss-Newton stiffness k g g^T (PSD): diagonal.
   for (int32_t f = r.flex_begin; f < r.flex_end; ++f) {
@@ -732,9 +964,7 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
   // Per organ (in parallel when there are workers): phase 0 clears forces and computes curvature
   // and flexion; then the tool; phase 1 sets rhs and diagonal and assembles the spring blocks.
   w.forces_zero = false;
-  const SpringBlockArrays B{w.jac_alpha.data(), w.jac_ux.data(), w.jac_uy.data(), w.jac_uz.data()};
-  const SpringBlockArrays CB{w.cjac_alpha.data(), w.cjac_ux.data(), w.cjac_uy.data(), w.cjac_uz.data()};
-  ImplicitSetup setup{&m, &s, &w, h, B, 0};
+  ImplicitSetup setup{&m, &s, &w, h, 0};
   for (setup.phase = 0; setup.phase < 2; ++setup.phase) {
     if (w.workers) {
       w.workers->run(implicit_setup_job, &setup);
@@ -750,35 +980,33 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
                    w.fx.data(), w.fy.data(), w.fz.data());
     }
   }
-  if (m.nconn)
-    spring_blocks<0>(0, m.nconn, m.conn_a.data(), m.conn_b.data(), m.conn_rest.data(),
-                     m.conn_k.data(), m.conn_d.data(), 1.0, 0.0, nullptr, s, w, CB, h);
+  if (m.nconn) connection_blocks(m, s, w, h);
   // Frozen vertices: sleeping organs and held/fixed vertices keep dv = 0.
-  const double* __restrict mask = w.free_mask.data();
   for (size_t o = 0; o < m.organs.size(); ++o)
     if (!s.organ_awake[o])
       std::fill(w.free_mask.begin() + m.organs[o].vert_begin, w.free_mask.begin() + m.organs[o].vert_end, 0.0);
 
   // PCG on dv, one independent system per connected component of organs (organs joined by
   // connection springs); components are spread over the worker threads.
-  ImplicitSolve solve{&m, &s, &w, h, B, CB};
+  ImplicitSolve solve{&m, &s, &w, h};
   if (w.workers && w.workers->components.size() > 1) {
     w.workers->run(implicit_component_job, &solve);
   } else {
     for (int32_t c = 0; c + 1 < static_cast<int32_t>(m.component_begin.size()); ++c) pcg_component(solve, c);
   }
-  double* __restrict xx = w.sx.data();
-  double* __restrict xy = w.sy.data();
-  double* __restrict xz = w.sz.data();
+  const double* __restrict mask = w.free_mask.data();
+  const float* __restrict dv = w.cg_x.data();
   IntegrateStats st;
+  for (int32_t d : w.cg_done) st.cg_iterations = std::max<int>(st.cg_iterations, d);
   for (int32_t v = 0; v < n; ++v) {
     if (mask[v] == 0.0) continue;
-    s.vx[v] += xx[v], s.vy[v] += xy[v], s.vz[v] += xz[v];
+    const double ax = dv[4 * v], ay = dv[4 * v + 1], az = dv[4 * v + 2];
+    s.vx[v] += ax, s.vy[v] += ay, s.vz[v] += az;
     s.x[v] += h * s.vx[v], s.y[v] += h * s.vy[v], s.z[v] += h * s.vz[v];
     const double sp = s.vx[v] * s.vx[v] + s.vy[v] * s.vy[v] + s.vz[v] * s.vz[v];
     st.max_speed2 = std::max(st.max_speed2, sp);
     st.checksum += s.x[v] + s.y[v] + s.z[v] + sp;
-    if (w.measure_accel) st.accel_sum += std::sqrt(xx[v] * xx[v] + xy[v] * xy[v] + xz[v] * xz[v]) / h;
+    if (w.measure_accel) st.accel_sum += std::sqrt(ax * ax + ay * ay + az * az) / h;
   }
   w.mask_dirty = true;
   set_free_mask(m, s, w);  // restore the mask changed for sleeping organs
@@ -840,12 +1068,33 @@ Work make_work(const Model& m) {
   Work w;
   const size_t n = m.nvert;
   for (auto* v : {&w.fx, &w.fy, &w.fz, &w.lap_x, &w.lap_y, &w.lap_z, &w.area2, &w.half_bk, &w.px,
-                  &w.py, &w.pz, &w.rx, &w.ry, &w.rz, &w.dx, &w.dy, &w.dz, &w.qx, &w.qy, &w.qz,
-                  &w.sx, &w.sy, &w.sz, &w.diag_x, &w.diag_y, &w.diag_z,
-                  &w.free_mask, &w.good_x, &w.good_y, &w.good_z})
+                  &w.py, &w.pz, &w.free_mask, &w.good_x, &w.good_y, &w.good_z})
     v->assign(n, 0.0);
-  for (auto* v : {&w.jac_alpha, &w.jac_ux, &w.jac_uy, &w.jac_uz}) v->assign(m.nspring, 0.0f);
-  for (auto* v : {&w.cjac_alpha, &w.cjac_ux, &w.cjac_uy, &w.cjac_uz}) v->assign(m.nconn, 0.0f);
+  // Implicit solver buffers only when a step can be implicit: asked for, or the guard's fallback.
+  if (m.integrator == Integrator::implicit || m.guard) {
+    for (auto* v : {&w.rx, &w.ry, &w.rz, &w.diag_x, &w.diag_y, &w.diag_z}) v->assign(n, 0.0);
+    for (auto* v : {&w.cg_b, &w.cg_r, &w.cg_p, &w.cg_q, &w.cg_x, &w.cg_inv}) v->assign(4 * n, 0.0f);
+    w.cg_mass.resize(n);
+    for (size_t v = 0; v < n; ++v) w.cg_mass[v] = static_cast<float>(m.vert_mass[v]);
+    w.jac.assign(4 * static_cast<size_t>(m.nspring), 0.0f);
+    w.cjac.assign(4 * static_cast<size_t>(m.nconn), 0.0f);
+    // CG spring order: per organ, four interleaved streams over the quarters of its springs
+    w.cg_sa.resize(m.nspring), w.cg_sb.resize(m.nspring), w.cg_s.resize(m.nspring);
+    for (const OrganRange& r : m.organs) {
+      const int32_t count = r.spring_end - r.spring_begin, quarter = (count + 3) / 4;
+      int32_t t = r.spring_begin;
+      for (int32_t k = 0; k < quarter; ++k)
+        for (int32_t stream = 0; stream < 4; ++stream) {
+          const int32_t local = stream * quarter + k;
+          if (local >= count) continue;
+          const int32_t sp = r.spring_begin + local;
+          w.cg_sa[t] = m.spring_a[sp], w.cg_sb[t] = m.spring_b[sp], w.cg_s[t] = sp;
+          ++t;
+        }
+    }
+    w.cg_tmp.assign(6 * static_cast<size_t>(kCgChunk), 0.0);
+    w.cg_done.assign(m.component_begin.empty() ? 0 : m.component_begin.size() - 1, 0);
+  }
   w.flex_grad.assign(12 * static_cast<size_t>(m.nflex), 0.0);
   const int threads = std::min<int>(m.threads, static_cast<int>(m.organs.size()));
   if (threads > 1) {
@@ -920,6 +1169,7 @@ StepReport step(const Model& m, State& s, Work& w) {
     ++s.tool.attach_progress;
   rep.tool_clamped = s.tool.clamped;
   rep.accel_sum = st.accel_sum;
+  rep.cg_iterations = st.cg_iterations;
   rep.max_speed_m_s = std::sqrt(st.max_speed2);
 
   // Guard: non-finite values, or a vertex crossing a quarter of the scene in one step.

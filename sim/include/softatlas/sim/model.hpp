@@ -141,6 +141,9 @@ struct Model {
   std::vector<double> spring_rest;     // l0 (Hooke) or rest elastica length l_e0 (nmsm)
   std::vector<double> spring_length0;  // plain rest length l0 (compensation, guard)
   std::vector<double> spring_k, spring_d;
+  // CSR rows of the edge springs by their smaller end (spring_a < spring_b): the springs of row v
+  // are [spring_row_begin[v], spring_row_begin[v+1]); #V+1 entries.
+  std::vector<int32_t> spring_row_begin;
   int32_t nconn = 0;                   // inter-organ connection springs
   std::vector<int32_t> conn_a, conn_b;
   std::vector<double> conn_rest, conn_k, conn_d;
@@ -217,13 +220,21 @@ struct Work {
   std::vector<double> lap_x, lap_y, lap_z, area2, half_bk;  // curvature pass
   std::vector<double> px, py, pz;            // previous positions (compensation, attach)
   // implicit solver
-  std::vector<double> rx, ry, rz, dx, dy, dz, qx, qy, qz, sx, sy, sz;  // CG vectors
-  // per spring blocks alpha I + beta u u^T of the implicit system, in float: the CG's matrix-vector
-  // product is bound by memory traffic, and 7 significant digits in the matrix change dv by about
-  // 1e-7 relative (docs/performance.md)
-  std::vector<float> jac_alpha, jac_ux, jac_uy, jac_uz;  // alpha, sqrt(beta) u
+  std::vector<double> rx, ry, rz;            // right-hand side, assembled in double
+  // CG vectors in float, 4 per vertex (x, y, z, 0): right-hand side, residual, direction, A p, solution, and the
+  // inverse Jacobi diagonal with the free mask in its fourth lane. The solve is bound by memory
+  // traffic; float changes dv by about 1e-7 relative, far below the error of 25 CG iterations
+  // (docs/performance.md).
+  std::vector<float> cg_b, cg_r, cg_p, cg_q, cg_x, cg_inv, cg_mass;
+  // per spring blocks alpha I + w w^T of the implicit system (w = sqrt(beta) u): 4 floats each,
+  // (w_x, w_y, w_z, alpha); edge springs, then connection springs (cjac)
+  std::vector<float> jac, cjac;
+  // the CG's order of the edge springs (per organ, four interleaved streams; see step.cpp):
+  // ends and index of the t-th spring in that order
+  std::vector<int32_t> cg_sa, cg_sb, cg_s;
+  std::vector<double> cg_tmp;                // block assembly scratch (one chunk of springs)
+  std::vector<int32_t> cg_done;              // CG iterations done, per connected component
   std::vector<double> flex_grad;             // implicit: d theta / dx of each flexion spring (#*12)
-  std::vector<float> cjac_alpha, cjac_ux, cjac_uy, cjac_uz;
   std::vector<double> diag_x, diag_y, diag_z;  // Jacobi preconditioner
   std::vector<double> free_mask;             // 1 for vertices the integrator moves, else 0
   std::vector<double> tool_target;           // attach: current target of each picked vertex

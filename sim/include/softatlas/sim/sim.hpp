@@ -43,6 +43,7 @@ struct StepReport {
   double accel_sum = 0.0;        // sum_i |a_i| over free vertices (paper 000 stopping rule)
   double max_speed_m_s = 0.0;
   bool tool_clamped = false;
+  int cg_iterations = 0;         // implicit steps: CG iterations done (most over the components)
   const char* message = "";      // static text, set when status != ok
 };
 
