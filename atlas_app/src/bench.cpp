@@ -62,6 +62,10 @@ std::string bench_haptic(const HapticBenchOptions& o) {
   const bool locked = lock_memory(lock_msg);
   if (!locked) std::fprintf(stderr, "bench haptic: %s\n", lock_msg.c_str());
   AtlasScene scene(io::read_organ_set(o.set), {}, {}, PhysicsSettings{});
+  // Renderer (and the llvmpipe threads the context creates) on the render cores; physics and
+  // the haptic loop share the remaining core (CpuPlan).
+  const CpuPlan cpus = plan_cpus();
+  pin_current_thread(cpus.render_cpus);
   auto ctx = make_osmesa_context(o.width, o.height);
   Viewer viewer(*ctx, scene);
   viewer.camera.set_view("anterior");
@@ -88,6 +92,7 @@ std::string bench_haptic(const HapticBenchOptions& o) {
   std::thread physics([&] {
     // Real-time paced: one step per dt of wall time; if a step takes longer, it lags (the
     // haptic loop keeps sending the last reaction).
+    if (cpus.haptic_cpu >= 0) pin_current_thread(std::vector<int>{cpus.haptic_cpu});
     const auto t0 = Clock::now();
     bool attached = false;
     std::vector<std::vector<float>> local(snapshot.size());
@@ -123,7 +128,7 @@ std::string bench_haptic(const HapticBenchOptions& o) {
     physics_steps.store(n);
     physics_busy_s.store(busy);
   });
-  loop.start(o.realtime);
+  loop.start(o.realtime, cpus.haptic_cpu);
   const auto t0 = Clock::now();
   long frames = 0;
   std::vector<std::vector<float>> draw(snapshot.size());
@@ -136,6 +141,10 @@ std::string bench_haptic(const HapticBenchOptions& o) {
     viewer.render();
     ctx->gl().Finish();
     ++frames;
+    if (o.render_fps > 0) {  // next frame at the display's next refresh
+      const double next = frames / o.render_fps, now = seconds_since(t0);
+      if (next > now) std::this_thread::sleep_for(std::chrono::duration<double>(next - now));
+    }
   }
   const double render_s = seconds_since(t0);
   loop.stop();
@@ -152,7 +161,9 @@ std::string bench_haptic(const HapticBenchOptions& o) {
                       {"physics_steps", ns},
                       {"physics_us_per_step", ns ? physics_busy_s.load() / static_cast<double>(ns) * 1e6 : 0.0},
                       {"physics_realtime_factor", scene.state.time_s / render_s},
-                      {"render_fps", frames / render_s}, {"render_size", {o.width, o.height}},
+                      {"render_fps", frames / render_s}, {"render_fps_target", o.render_fps},
+                      {"haptic_physics_cpu", cpus.haptic_cpu}, {"render_cpus", cpus.render_cpus},
+                      {"render_size", {o.width, o.height}},
                       {"render_threads", std::getenv("LP_NUM_THREADS") ? std::getenv("LP_NUM_THREADS") : ""},
                       {"peak_force_N", st.peak_force_N}, {"realtime", st.realtime},
                       {"memory_locked", locked}, {"message", st.message.empty() ? lock_msg : st.message},

@@ -165,6 +165,9 @@ int cmd_bench(const std::vector<std::string>& args) {
   app.add_option("--width", o.width)->check(CLI::Range(16, 8192));
   app.add_option("--height", o.height)->check(CLI::Range(16, 8192));
   app.add_option("--render-threads", o.render_threads, "llvmpipe threads (LP_NUM_THREADS)")->check(CLI::Range(1, 64));
+  app.add_option("--render-fps", o.render_fps,
+                 "pace the render loop like a display at this rate (default 60); 0 = as fast as it can")
+      ->check(CLI::Range(0.0, 1000.0));
   app.add_flag("--no-realtime", norealtime, "do not ask for SCHED_FIFO");
   app.add_flag("--json", json, "print JSON (the default output)");
   if (int rc = parse(app, args, 2)) return rc < 0 ? 0 : rc;

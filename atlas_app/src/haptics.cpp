@@ -1,5 +1,6 @@
 #include "softatlas/app/haptics.hpp"
 
+#include <malloc.h>
 #include <pthread.h>
 #include <sched.h>
 #include <sys/mman.h>
@@ -86,6 +87,12 @@ Vec3d ForceShaper::shape(const Vec3d& f, bool contact, double t_s) {
 }
 
 bool lock_memory(std::string& why) {
+  // Keep freed memory in the heap instead of returning it to the kernel: with every page locked,
+  // malloc's mmap/munmap of large blocks (the renderer's per-frame buffers) would make the kernel
+  // zero and populate pages and shoot down TLBs on every core, which delays the haptic thread's
+  // wake-up on a non-preemptible kernel (measured: max period 3.3-3.8 ms -> see docs/viewer.md).
+  mallopt(M_MMAP_MAX, 0);
+  mallopt(M_TRIM_THRESHOLD, -1);
   if (mlockall(MCL_CURRENT | MCL_FUTURE) == 0) return true;
   why = std::string("mlockall refused (") + std::strerror(errno) +
         "): raise RLIMIT_MEMLOCK (ulimit -l) or grant CAP_IPC_LOCK";
@@ -99,9 +106,33 @@ HapticLoop::HapticLoop(Device& device, ForceShaper shaper, int64_t max_cycles, d
 
 HapticLoop::~HapticLoop() { stop(); }
 
-void HapticLoop::start(bool want_realtime) {
+CpuPlan plan_cpus() {
+  CpuPlan plan;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof set, &set) != 0) return plan;
+  std::vector<int> cpus;
+  for (int c = 0; c < CPU_SETSIZE; ++c)
+    if (CPU_ISSET(c, &set)) cpus.push_back(c);
+  if (cpus.size() < 2) return plan;
+  plan.haptic_cpu = cpus.back();
+  cpus.pop_back();
+  plan.render_cpus = cpus;
+  return plan;
+}
+
+bool pin_current_thread(const std::vector<int>& cpus) {
+  if (cpus.empty()) return true;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  for (int c : cpus) CPU_SET(c, &set);
+  return pthread_setaffinity_np(pthread_self(), sizeof set, &set) == 0;
+}
+
+void HapticLoop::start(bool want_realtime, int cpu) {
   if (running_.load()) return;
   want_realtime_ = want_realtime;
+  cpu_ = cpu;
   stop_.store(false);
   cycles_ = 0;
   running_.store(true);
@@ -115,6 +146,7 @@ void HapticLoop::stop() {
 }
 
 void HapticLoop::run() {
+  if (cpu_ >= 0) pin_current_thread(std::vector<int>{cpu_});
   if (want_realtime_) {
     sched_param sp{};
     sp.sched_priority = std::min(80, sched_get_priority_max(SCHED_FIFO));

@@ -31,8 +31,10 @@ struct PhysicsThread {
   double us_per_step = 0, max_disp_mm = 0;
   std::atomic<bool> stop{false}, paused{false};
   std::thread thread;
+  int cpu = -1;  // shared with the haptic loop (CpuPlan)
 
   void run() {
+    if (cpu >= 0) pin_current_thread(std::vector<int>{cpu});
     const auto t0 = Clock::now();
     bool attached = false;
     std::vector<int32_t> verts;
@@ -95,6 +97,10 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
     context = lesson->context;
     physics = lesson->physics;
   }
+  // The window, the renderer and llvmpipe's threads on the render cores; physics and the haptic
+  // loop share the remaining core (CpuPlan).
+  const CpuPlan cpus = plan_cpus();
+  pin_current_thread(cpus.render_cpus);
   auto ctx = make_glfw_context(opt.width, opt.height, lesson ? "SoftAtlas - " + lesson->title : "SoftAtlas");
   auto scene = std::make_unique<AtlasScene>(set, shown, context, physics);
   auto viewer = std::make_unique<Viewer>(*ctx, *scene);
@@ -109,11 +115,12 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
     phys = std::make_unique<PhysicsThread>();
     phys->scene = scene.get();
     phys->loop = loop.get();
+    phys->cpu = cpus.haptic_cpu;
     phys->snapshot.resize(scene->view_organs().size());
     phys->thread = std::thread([p = phys.get()] { p->run(); });
   };
   start_physics();
-  loop->start(opt.realtime);
+  loop->start(opt.realtime, cpus.haptic_cpu);
   const HapticStats first = loop->stats();
   (void)first;
 

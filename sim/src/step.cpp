@@ -133,6 +133,24 @@ void organ_internal_forces(const Model& m, const OrganRange& r, const State& s, 
 
 // All internal forces of awake organs into work.f (zeroed first unless the explicit update
 // already left them zero: it clears them as it consumes them, as bench-ref does).
+// Internal forces of the organs that hold a tool vertex, and of the connections; other organs'
+// force entries are left as they are (forces_zero becomes false).
+void tool_organ_forces(const Model& m, const State& s, Work& w) {
+  std::fill(w.organ_flag.begin(), w.organ_flag.end(), uint8_t{0});
+  for (int32_t v : s.tool.verts) w.organ_flag[m.vert_organ[v]] = 1;
+  for (size_t o = 0; o < m.organs.size(); ++o) {
+    const OrganRange& r = m.organs[o];
+    if (!w.organ_flag[o]) continue;
+    std::fill(w.fx.begin() + r.vert_begin, w.fx.begin() + r.vert_end, 0.0);
+    std::fill(w.fy.begin() + r.vert_begin, w.fy.begin() + r.vert_end, 0.0);
+    std::fill(w.fz.begin() + r.vert_begin, w.fz.begin() + r.vert_end, 0.0);
+  }
+  w.forces_zero = false;
+  for (size_t o = 0; o < m.organs.size(); ++o)
+    if (w.organ_flag[o] && s.organ_awake[o]) organ_internal_forces(m, m.organs[o], s, w);
+  connection_forces(m, s, w);
+}
+
 void internal_forces(const Model& m, const State& s, Work& w) {
   if (!w.forces_zero) {
     std::fill(w.fx.begin(), w.fx.end(), 0.0);
@@ -1012,8 +1030,9 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
   set_free_mask(m, s, w);  // restore the mask changed for sleeping organs
   constraint_passes(m, s, w, h);
   if (s.tool.mode != ToolMode::none && !s.tool.verts.empty()) {
-    // Reaction at the end of the step (implicit: forces at x_{n+1}).
-    internal_forces(m, s, w);
+    // Reaction at the end of the step (implicit: forces at x_{n+1}): only the forces of the
+    // organs the tool holds (and the connections) reach the held vertices.
+    tool_organ_forces(m, s, w);
     apply_tool(m, s, w, /*reaction=*/true, /*add_force=*/false);
   }
   return st;
@@ -1096,6 +1115,7 @@ Work make_work(const Model& m) {
     w.cg_done.assign(m.component_begin.empty() ? 0 : m.component_begin.size() - 1, 0);
   }
   w.flex_grad.assign(12 * static_cast<size_t>(m.nflex), 0.0);
+  w.organ_flag.assign(m.organs.size(), 0);
   const int threads = std::min<int>(m.threads, static_cast<int>(m.organs.size()));
   if (threads > 1) {
     // Organs to threads, largest first onto the least loaded (LPT), by spring + face count.

@@ -21,6 +21,9 @@ struct HapticBenchOptions {
   bool realtime = true;
   int render_threads = 1;   // LP_NUM_THREADS for llvmpipe unless already set
   double amplitude_mm = 10.0;
+  // Render pacing: a window shows frames at the display rate (GLFW swap interval 1), so the
+  // render loop beside the haptic loop is paced to this rate; 0 renders as fast as it can.
+  double render_fps = 60.0;
 };
 std::string bench_haptic(const HapticBenchOptions& options);
 

@@ -153,7 +153,8 @@ class HapticLoop {
   // Reserves room for `max_cycles` period samples up front (no allocation while running).
   HapticLoop(Device& device, ForceShaper shaper, int64_t max_cycles, double rate_hz = 1000.0);
   ~HapticLoop();
-  void start(bool want_realtime);
+  // cpu >= 0: the loop's thread runs on that core only (see CpuPlan).
+  void start(bool want_realtime, int cpu = -1);
   void stop();
   bool running() const { return running_.load(); }
 
@@ -176,10 +177,24 @@ class HapticLoop {
   std::atomic<bool> running_{false}, stop_{false};
   std::thread thread_;
   bool want_realtime_ = false, realtime_ = false, locked_ = false;
+  int cpu_ = -1;
   std::string message_;
 };
 
 // Tries mlockall(MCL_CURRENT | MCL_FUTURE); returns false with the reason.
 bool lock_memory(std::string& why);
+
+// Which cores the threads use. The haptic loop shares one core with the physics thread, which
+// keeps that core busy: on a virtual machine an idle core is halted and wakes late (a bare 1 kHz
+// loop on an idle core here: max period 4.4 ms; beside a busy thread: 1.7 ms). The renderer (and
+// llvmpipe's threads, which inherit the affinity of the thread that creates the context) gets
+// the other cores. With a single allowed core nothing is pinned (haptic_cpu = -1).
+struct CpuPlan {
+  int haptic_cpu = -1;            // haptic loop and physics thread
+  std::vector<int> render_cpus;   // everything else
+};
+CpuPlan plan_cpus();
+// Restricts the calling thread to `cpus` (no-op when empty); false if the kernel refused.
+bool pin_current_thread(const std::vector<int>& cpus);
 
 }  // namespace softatlas::app

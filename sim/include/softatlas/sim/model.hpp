@@ -236,6 +236,7 @@ struct Work {
   std::vector<int32_t> cg_done;              // CG iterations done, per connected component
   std::vector<double> flex_grad;             // implicit: d theta / dx of each flexion spring (#*12)
   std::vector<double> diag_x, diag_y, diag_z;  // Jacobi preconditioner
+  std::vector<uint8_t> organ_flag;           // per organ scratch (organs the tool holds)
   std::vector<double> free_mask;             // 1 for vertices the integrator moves, else 0
   std::vector<double> tool_target;           // attach: current target of each picked vertex
   bool measure_accel = false;                // fill StepReport::accel_sum (costs a sqrt/vertex)
