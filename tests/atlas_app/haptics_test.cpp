@@ -1,6 +1,8 @@
 // Haptics: force shaping (closed form), the scripted device, the scripted pull of the liver
 // (device force == the core's reaction), and the 1 kHz loop thread.
 #include <gtest/gtest.h>
+#include <pthread.h>
+#include <sched.h>
 
 #include <chrono>
 #include <cmath>
@@ -124,6 +126,47 @@ TEST(Haptics, LoopRunsNearOneKilohertzAndKeepsTheLastForce) {
   EXPECT_NEAR(s.period_us_p50, 1000.0, 250.0);
   EXPECT_NEAR(device.last_sent_N()[2], 1.0, 1e-12);  // clamped, and never stalled to zero
   EXPECT_NEAR(s.peak_force_N, 1.0, 1e-12);
+}
+
+TEST(Haptics, CpuPlanGivesTheHapticLoopOneCoreAndTheRendererTheRest) {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  ASSERT_EQ(sched_getaffinity(0, sizeof set, &set), 0);
+  const int allowed = CPU_COUNT(&set);
+  const CpuPlan plan = plan_cpus();
+  if (allowed < 2) {
+    EXPECT_EQ(plan.haptic_cpu, -1);
+    EXPECT_TRUE(plan.render_cpus.empty());
+    return;
+  }
+  ASSERT_GE(plan.haptic_cpu, 0);
+  EXPECT_TRUE(CPU_ISSET(plan.haptic_cpu, &set));
+  EXPECT_EQ(static_cast<int>(plan.render_cpus.size()), allowed - 1);
+  for (int c : plan.render_cpus) {
+    EXPECT_NE(c, plan.haptic_cpu);
+    EXPECT_TRUE(CPU_ISSET(c, &set));
+  }
+  // A loop started on the haptic core runs there, and the calling thread is not moved.
+  ScriptedDevice device({{0.0, {0, 0, 0}}, {1.0, {0, 0, 0}}}, false, 1.0);
+  HapticLoop loop(device, ForceShaper{1.0, 0.0}, 1000);
+  loop.start(false, plan.haptic_cpu);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  loop.stop();
+  EXPECT_GT(loop.stats().cycles, 10);
+  cpu_set_t after;
+  CPU_ZERO(&after);
+  ASSERT_EQ(sched_getaffinity(0, sizeof after, &after), 0);
+  EXPECT_EQ(CPU_COUNT(&after), allowed);
+  // pinning a thread to the render cores takes effect
+  std::thread t([&] {
+    EXPECT_TRUE(pin_current_thread(plan.render_cpus));
+    cpu_set_t mine;
+    CPU_ZERO(&mine);
+    pthread_getaffinity_np(pthread_self(), sizeof mine, &mine);
+    EXPECT_EQ(CPU_COUNT(&mine), static_cast<int>(plan.render_cpus.size()));
+    EXPECT_FALSE(CPU_ISSET(plan.haptic_cpu, &mine));
+  });
+  t.join();
 }
 
 }  // namespace

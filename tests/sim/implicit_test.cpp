@@ -126,5 +126,36 @@ TEST(Implicit, TwentyFiveIterationsReduceTheErrorOfTheDenseSolve) {
   EXPECT_LT(r25.rel_error, 0.1) << "relative error " << r25.rel_error;
 }
 
+TEST(Implicit, ReportsTheIterationsDoneAndStopsAtTheFloatFloorUnlessAskedForAll) {
+  sim::SceneDesc scene;
+  scene.organs.push_back(test::organ("a", test::icosphere(2, 0.05)));
+  scene.organs[0].material.model = sim::ModelKind::tmsm;
+  scene.organs[0].material.stiffness = 50.0;
+  scene.organs[0].fixed = {0, 1, 2};
+  scene.integrator = sim::Integrator::implicit;
+  scene.dt_s = 1e-4;  // mass-dominated: CG converges in a few iterations
+  scene.gravity = true;
+  scene.allow_sleep = false;
+  scene.cg_iterations = 25;
+  for (double tol : {1e-8, 0.0}) {
+    scene.cg_tolerance = tol;
+    const sim::Model m = sim::compile(scene);
+    sim::State s = sim::make_state(m);
+    sim::Work w = sim::make_work(m);
+    for (int k = 0; k < 20; ++k) {
+      const sim::StepReport rep = sim::step(m, s, w);
+      ASSERT_EQ(rep.status, sim::StepStatus::ok);
+      if (tol > 0) {
+        EXPECT_GE(rep.cg_iterations, 1);
+        EXPECT_LT(rep.cg_iterations, 25) << "the float CG stops at its floor";
+      } else {
+        EXPECT_EQ(rep.cg_iterations, 25) << "cg_tolerance 0: every iteration is done (restarts count)";
+      }
+    }
+    EXPECT_TRUE(std::isfinite(s.z[m.nvert - 1]));
+    EXPECT_LT(s.z[m.nvert - 1], m.vert_rest_z[m.nvert - 1] + 1e-3);
+  }
+}
+
 }  // namespace
 }  // namespace softatlas
