@@ -181,10 +181,11 @@ void check_nifti_length(const std::string& path) {
   int r;
   while ((r = gzread(f, buf.data(), static_cast<unsigned>(buf.size()))) > 0) total += static_cast<size_t>(r);
   int err = 0;
-  const char* msg = gzerror(f, &err);
+  const char* zmsg = gzerror(f, &err);
+  const std::string msg = zmsg && *zmsg ? zmsg : "zlib error";  // zlib owns zmsg: copy before gzclose
   gzclose(f);
   if (r < 0 || (err != Z_OK && err != Z_STREAM_END))
-    throw InputError(path, std::string("corrupt compressed stream (") + (msg ? msg : "zlib error") + ")");
+    throw InputError(path, "corrupt compressed stream (" + msg + ")");
   if (total < expected)
     throw InputError(path, "truncated volume: " + std::to_string(total) + " bytes, header needs " +
                                std::to_string(expected));

@@ -485,19 +485,17 @@ using f4 = float __attribute__((vector_size(16)));
 using i4 = int32_t __attribute__((vector_size(16)));
 using d4 = double __attribute__((vector_size(32)));
 
-inline f4 load4(const float* p) {
-  f4 v;
-  std::memcpy(&v, p, sizeof v);
-  return v;
-}
-inline void store4(float* p, f4 v) { std::memcpy(p, &v, sizeof v); }
 using f8 = float __attribute__((vector_size(32)));
 using i8 = int32_t __attribute__((vector_size(32)));
-inline f8 load8(const float* p) {
-  f8 v;
+template <class V>
+inline V load_vec(const float* p) {  // unaligned load of a 4- or 8-float vector
+  V v;
   std::memcpy(&v, p, sizeof v);
   return v;
 }
+inline f4 load4(const float* p) { return load_vec<f4>(p); }
+inline f8 load8(const float* p) { return load_vec<f8>(p); }
+inline void store4(float* p, f4 v) { std::memcpy(p, &v, sizeof v); }
 inline f8 splat8(float a) { return f8{a, a, a, a, a, a, a, a}; }
 inline f8 join(f4 a, f4 b) { return __builtin_shufflevector(a, b, 0, 1, 2, 3, 4, 5, 6, 7); }
 inline f4 splat4(float a) { return f4{a, a, a, a}; }
@@ -514,72 +512,50 @@ constexpr i8 kXYZ8 = {-1, -1, -1, 0, -1, -1, -1, 0};
 constexpr double kCgFloatFloor = 1e-7;  // relative residual a float CG can reach
 constexpr int32_t kCgChunk = 256;       // springs per chunk of the vectorised block assembly
 
-// One spring's block and right-hand-side term at x0, v0. Returns g (added at i, subtracted at j)
-// and the block's diagonal dd; writes the block.
-template <int P>
-inline void spring_block(int32_t q, int32_t slot, int32_t i, int32_t j, const double* rest, const double* k,
-                         const double* d, double a, double cap, const double* hv, const State& s,
-                         double h, float* blk, double g[3], double dd[3]) {
-  const double dx = s.x[j] - s.x[i], dy = s.y[j] - s.y[i], dz = s.z[j] - s.z[i];
-  const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
-  const double inv = 1.0 / (l > kTiny ? l : kTiny);
-  const double ux = dx * inv, uy = dy * inv, uz = dz * inv;
-  double factor = 1.0;
-  if constexpr (P == 1) factor = a + std::min(hv[i] + hv[j], cap);
-  if constexpr (P == 2) factor = a + std::min((hv[i] + hv[j]) * (hv[i] + hv[j]), cap);
-  if constexpr (P == 3) factor = a;
-  const double ke = k[q] * factor, Le = rest[q] / factor;
-  const double dq = d ? d[q] : 0.0;
-  const double c = std::max(0.0, 1.0 - Le * inv);
-  const double alpha = h * h * ke * c;
-  const double kbeta = h * h * ke - alpha;  // stiffness part of beta
-  // force at x0, v0 (eqs 6-7)
-  const double dvx = s.vx[j] - s.vx[i], dvy = s.vy[j] - s.vy[i], dvz = s.vz[j] - s.vz[i];
-  const double dvu = dvx * ux + dvy * uy + dvz * uz;
-  const double f = ke * (l - Le) + dq * dvu;
-  // h^2 K v0 term at i: +(alpha dv + kbeta u (u.dv)) (K pulls i toward j's motion)
-  g[0] = h * f * ux + alpha * dvx + kbeta * dvu * ux;
-  g[1] = h * f * uy + alpha * dvy + kbeta * dvu * uy;
-  g[2] = h * f * uz + alpha * dvz + kbeta * dvu * uz;
-  const double sb = std::sqrt(std::max(0.0, kbeta + h * dq));
-  const float fa = static_cast<float>(alpha), wx = static_cast<float>(sb * ux),
-              wy = static_cast<float>(sb * uy), wz = static_cast<float>(sb * uz);
-  blk[4 * slot] = wx, blk[4 * slot + 1] = wy, blk[4 * slot + 2] = wz, blk[4 * slot + 3] = fa;
-  // Jacobi diagonal of the same (rounded) block
-  dd[0] = fa + double(wx) * wx, dd[1] = fa + double(wy) * wy, dd[2] = fa + double(wz) * wz;
-}
+// Springs whose blocks are assembled: ends, spring index (sp == nullptr: t itself), Hooke/elastica
+// parameters, and where the blocks go (4 floats per spring, at t).
+struct BlockSprings {
+  const int32_t *sa, *sb, *sp;
+  const double *rest, *k, *d;  // d == nullptr: no damping
+  double a, cap;               // elastica factor (P = 1, 2, 3)
+  float* blk;
+};
 
-// An organ's edge springs in the CG's interleaved order (Work::cg_sa/cg_sb/cg_s), in chunks:
-// a vectorised pass computes each spring's block and right-hand-side term, then a scalar pass
-// scatters the terms to both ends (consecutive springs share no vertex).
+// Blocks and right-hand-side terms of springs [begin, end), in chunks: a vectorised pass
+// computes each spring's block and term, then a scalar pass scatters the terms to both ends
+// (the edge springs come in the CG's interleaved order, Work::cg_sa/cg_sb/cg_s, so consecutive
+// ones share no vertex).
+// `slot`: which chunk scratch of Work::cg_tmp to use (the worker thread's index).
 template <int P>
-__attribute__((noinline)) void organ_spring_blocks(const Model& m, const OrganRange& r, const double* d,
-                                                   const double* hv, const State& s, Work& w, double h) {
-  const int32_t* __restrict sa = w.cg_sa.data();
-  const int32_t* __restrict sb = w.cg_sb.data();
-  const int32_t* __restrict sp = w.cg_s.data();
-  const double* __restrict rest = m.spring_rest.data();
-  const double* __restrict kk = m.spring_k.data();
+__attribute__((noinline)) void assemble_blocks(int32_t begin, int32_t end, const BlockSprings& S,
+                                               const double* hv, const State& s, Work& w, double h,
+                                               int slot) {
+  const int32_t* __restrict sa = S.sa;
+  const int32_t* __restrict sb = S.sb;
+  const int32_t* __restrict sp = S.sp;
+  const double* __restrict rest = S.rest;
+  const double* __restrict kk = S.k;
+  const double* __restrict d = S.d;
   const double* __restrict x = s.x.data();
   const double* __restrict y = s.y.data();
   const double* __restrict z = s.z.data();
   const double* __restrict vx = s.vx.data();
   const double* __restrict vy = s.vy.data();
   const double* __restrict vz = s.vz.data();
-  float* __restrict blk = w.jac.data();
-  double* __restrict tmp = w.cg_tmp.data();  // 6 x kCgChunk: g (3), diagonal (3)
+  float* __restrict blk = S.blk;
+  double* __restrict tmp = w.cg_tmp.data() + 6 * static_cast<size_t>(kCgChunk) * slot;  // g (3), diagonal (3)
   double* __restrict rx = w.rx.data();
   double* __restrict ry = w.ry.data();
   double* __restrict rz = w.rz.data();
   double* __restrict dgx = w.diag_x.data();
   double* __restrict dgy = w.diag_y.data();
   double* __restrict dgz = w.diag_z.data();
-  const double a = r.elastica_a, cap = r.elastica_cap, h2 = h * h;
-  for (int32_t c = r.spring_begin; c < r.spring_end; c += kCgChunk) {
-    const int32_t ce = std::min(r.spring_end, c + kCgChunk);
+  const double a = S.a, cap = S.cap, h2 = h * h;
+  for (int32_t c = begin; c < end; c += kCgChunk) {
+    const int32_t ce = std::min(end, c + kCgChunk);
 #pragma omp simd
     for (int32_t t = c; t < ce; ++t) {
-      const int32_t i = sa[t], j = sb[t], q = sp[t], k = t - c;
+      const int32_t i = sa[t], j = sb[t], q = sp ? sp[t] : t, k = t - c;
       const double dx = x[j] - x[i], dy = y[j] - y[i], dz = z[j] - z[i];
       const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
       const double inv = 1.0 / (l > kTiny ? l : kTiny);
@@ -623,15 +599,9 @@ __attribute__((noinline)) void organ_spring_blocks(const Model& m, const OrganRa
 }
 
 void connection_blocks(const Model& m, const State& s, Work& w, double h) {
-  for (int32_t q = 0; q < m.nconn; ++q) {
-    const int32_t i = m.conn_a[q], j = m.conn_b[q];
-    double g[3], dd[3];
-    spring_block<0>(q, q, i, j, m.conn_rest.data(), m.conn_k.data(), m.conn_d.data(), 1.0, 0.0, nullptr,
-                    s, h, w.cjac.data(), g, dd);
-    w.rx[i] += g[0], w.ry[i] += g[1], w.rz[i] += g[2];
-    w.rx[j] -= g[0], w.ry[j] -= g[1], w.rz[j] -= g[2];
-    for (int32_t v : {i, j}) w.diag_x[v] += dd[0], w.diag_y[v] += dd[1], w.diag_z[v] += dd[2];
-  }
+  const BlockSprings S{m.conn_a.data(), m.conn_b.data(), nullptr, m.conn_rest.data(), m.conn_k.data(),
+                       m.conn_d.data(), 1.0, 0.0, w.cjac.data()};
+  assemble_blocks<0>(0, m.nconn, S, nullptr, s, w, h, 0);
 }
 
 // One CG matrix-vector product over an organ: with Update, p = z + beta p first (z = inv r);
@@ -791,7 +761,8 @@ void pcg_component(ImplicitSolve& S, int32_t comp) {
   float* __restrict inv = w.cg_inv.data();
   float* __restrict b = w.cg_b.data();
   // Inverse Jacobi diagonal with the mask folded in: z = r * inv is zero on frozen vertices, so
-  // p and dv stay zero there; the residual is masked once per iteration through lane 3.
+  // p and dv stay zero there; their residual entries are never read (cg_update sums the residual
+  // where inv != 0).
   int32_t& done = w.cg_done[comp];
   done = 0;
   // The right-hand side is scaled to unit norm: the float iteration then works on numbers near 1
@@ -922,7 +893,7 @@ struct ImplicitSetup {
   int phase;
 };
 
-void implicit_setup_organ(ImplicitSetup& S, int32_t o) {
+void implicit_setup_organ(ImplicitSetup& S, int32_t o, int t) {
   const Model& m = *S.m;
   State& s = *S.s;
   Work& w = *S.w;
@@ -948,11 +919,13 @@ void implicit_setup_organ(ImplicitSetup& S, int32_t o) {
   if (!s.organ_awake[o]) return;
   const double* d = r.damping ? m.spring_d.data() : nullptr;
   const double* hv = w.half_bk.data();
+  const BlockSprings B{w.cg_sa.data(), w.cg_sb.data(), w.cg_s.data(), m.spring_rest.data(), m.spring_k.data(),
+                       d, r.elastica_a, r.elastica_cap, w.jac.data()};
   switch (spring_measure_kind(r)) {
-    case 0: organ_spring_blocks<0>(m, r, d, hv, s, w, h); break;
-    case 1: organ_spring_blocks<1>(m, r, d, hv, s, w, h); break;
-    case 2: organ_spring_blocks<2>(m, r, d, hv, s, w, h); break;
-    default: organ_spring_blocks<3>(m, r, d, hv, s, w, h); break;
+    case 0: assemble_blocks<0>(r.spring_begin, r.spring_end, B, hv, s, w, h, t); break;
+    case 1: assemble_blocks<1>(r.spring_begin, r.spring_end, B, hv, s, w, h, t); break;
+    case 2: assemble_blocks<2>(r.spring_begin, r.spring_end, B, hv, s, w, h, t); break;
+    default: assemble_blocks<3>(r.spring_begin, r.spring_end, B, hv, s, w, h, t); break;
   }
   // Flexion springs in the matrix by their Gauss-Newton stiffness k g g^T (PSD): diagonal.
   for (int32_t f = r.flex_begin; f < r.flex_end; ++f) {
@@ -967,7 +940,7 @@ void implicit_setup_organ(ImplicitSetup& S, int32_t o) {
 
 void implicit_setup_job(void* context, int t) {
   ImplicitSetup& S = *static_cast<ImplicitSetup*>(context);
-  for (int32_t o : S.w->workers->organs[t]) implicit_setup_organ(S, o);
+  for (int32_t o : S.w->workers->organs[t]) implicit_setup_organ(S, o, t);
 }
 
 IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
@@ -987,7 +960,7 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h) {
     if (w.workers) {
       w.workers->run(implicit_setup_job, &setup);
     } else {
-      for (int32_t o = 0; o < static_cast<int32_t>(m.organs.size()); ++o) implicit_setup_organ(setup, o);
+      for (int32_t o = 0; o < static_cast<int32_t>(m.organs.size()); ++o) implicit_setup_organ(setup, o, 0);
     }
     if (setup.phase == 0) {
       apply_tool(m, s, w, /*reaction=*/false);
@@ -1111,7 +1084,8 @@ Work make_work(const Model& m) {
           ++t;
         }
     }
-    w.cg_tmp.assign(6 * static_cast<size_t>(kCgChunk), 0.0);
+    // one chunk scratch per worker thread
+    w.cg_tmp.assign(6 * static_cast<size_t>(kCgChunk) * std::max(1, std::min<int>(m.threads, static_cast<int>(m.organs.size()))), 0.0);
     w.cg_done.assign(m.component_begin.empty() ? 0 : m.component_begin.size() - 1, 0);
   }
   w.flex_grad.assign(12 * static_cast<size_t>(m.nflex), 0.0);
