@@ -92,7 +92,7 @@ std::string bench_haptic(const HapticBenchOptions& o) {
   std::thread physics([&] {
     // Real-time paced: one step per dt of wall time; if a step takes longer, it lags (the
     // haptic loop keeps sending the last reaction).
-    if (cpus.haptic_cpu >= 0) pin_current_thread(std::vector<int>{cpus.haptic_cpu});
+    pin_current_thread(cpus.haptic_cpu);
     const auto t0 = Clock::now();
     bool attached = false;
     std::vector<std::vector<float>> local(snapshot.size());

@@ -34,7 +34,7 @@ struct PhysicsThread {
   int cpu = -1;  // shared with the haptic loop (CpuPlan)
 
   void run() {
-    if (cpu >= 0) pin_current_thread(std::vector<int>{cpu});
+    pin_current_thread(cpu);
     const auto t0 = Clock::now();
     bool attached = false;
     std::vector<int32_t> verts;

@@ -6,7 +6,6 @@
 #include <limits>
 #include <numeric>
 #include <sstream>
-#include <stdexcept>
 #include <unordered_map>
 
 #include "softatlas/sim/sim.hpp"
@@ -533,15 +532,6 @@ Model compile(const SceneDesc& scene) {
   if (dropped_conn)
     m.dropped.push_back(std::to_string(dropped_conn) +
                         " connection springs: to organs left out, or zero stiffness");
-
-  // spring rows by the smaller end (edges are sorted by (a, b), organs are contiguous)
-  m.spring_row_begin.assign(static_cast<size_t>(m.nvert) + 1, 0);
-  for (int32_t s = 0; s < m.nspring; ++s) {
-    if (!(m.spring_a[s] < m.spring_b[s]) || (s > 0 && m.spring_a[s] < m.spring_a[s - 1]))
-      throw std::logic_error("compile: edge springs are not sorted by their smaller end");
-    ++m.spring_row_begin[m.spring_a[s] + 1];
-  }
-  for (int32_t v = 0; v < m.nvert; ++v) m.spring_row_begin[v + 1] += m.spring_row_begin[v];
 
   // organ adjacency (CSR) for sleeping and waking
   const int32_t norg = static_cast<int32_t>(m.organs.size());

@@ -131,8 +131,6 @@ void organ_internal_forces(const Model& m, const OrganRange& r, const State& s, 
   if (r.flex_end > r.flex_begin) flexion_forces(m, r, s, w);
 }
 
-// All internal forces of awake organs into work.f (zeroed first unless the explicit update
-// already left them zero: it clears them as it consumes them, as bench-ref does).
 // Internal forces of the organs that hold a tool vertex, and of the connections; other organs'
 // force entries are left as they are (forces_zero becomes false).
 void tool_organ_forces(const Model& m, const State& s, Work& w) {
@@ -151,6 +149,8 @@ void tool_organ_forces(const Model& m, const State& s, Work& w) {
   connection_forces(m, s, w);
 }
 
+// All internal forces of awake organs into work.f (zeroed first unless the explicit update
+// already left them zero: it clears them as it consumes them, as bench-ref does).
 void internal_forces(const Model& m, const State& s, Work& w) {
   if (!w.forces_zero) {
     std::fill(w.fx.begin(), w.fx.end(), 0.0);
@@ -604,6 +604,24 @@ void connection_blocks(const Model& m, const State& s, Work& w, double h) {
   assemble_blocks<0>(0, m.nconn, S, nullptr, s, w, h, 0);
 }
 
+// Springs [begin, end) one at a time, both ends scattered: q += blocks p, returns p . blocks p
+// (connection springs, and the last springs of an organ).
+double cg_springs(int32_t begin, int32_t end, const int32_t* ca, const int32_t* cb, const float* blk,
+                  const float* p, float* q) {
+  d4 pq = {0, 0, 0, 0};
+  for (int32_t s = begin; s < end; ++s) {
+    const int32_t i = ca[s], j = cb[s];
+    const f4 dv = load4(p + 4 * i) - load4(p + 4 * j);
+    const f4 b = load4(blk + 4 * s);
+    const f4 wv = reinterpret_cast<f4>(reinterpret_cast<i4>(b) & kXYZ);
+    const f4 g = __builtin_shufflevector(b, b, 3, 3, 3, 3) * dv + dot3(dv, b) * wv;
+    store4(q + 4 * i, load4(q + 4 * i) + g);
+    store4(q + 4 * j, load4(q + 4 * j) - g);
+    pq += __builtin_convertvector(dv * g, d4);
+  }
+  return hsum3(pq);
+}
+
 // One CG matrix-vector product over an organ: with Update, p = z + beta p first (z = inv r);
 // then q = M p on the organ's vertices, then q += blocks p over its springs. Returns p . q (mass
 // and spring energies). The springs run in the interleaved order of Work::cg_sa/cg_sb: four
@@ -652,37 +670,9 @@ __attribute__((noinline)) double cg_apply_organ(int32_t vb, int32_t ve, int32_t 
   };
   int32_t t = sbeg;
   for (; t + 4 <= send; t += 4) two(t, e[0]), two(t + 2, e[1]);
-  f4 e4 = __builtin_shufflevector(e[0] + e[1], e[0] + e[1], 0, 1, 2, 3) +
-          __builtin_shufflevector(e[0] + e[1], e[0] + e[1], 4, 5, 6, 7);
-  for (; t < send; ++t) {
-    const int32_t i = sa[t], j = sb[t];
-    const f4 dv = load4(p + 4 * i) - load4(p + 4 * j);
-    const f4 b = load4(blk + 4 * t);
-    const f4 wv = reinterpret_cast<f4>(reinterpret_cast<i4>(b) & kXYZ);
-    const f4 g = __builtin_shufflevector(b, b, 3, 3, 3, 3) * dv + dot3(dv, b) * wv;
-    store4(q + 4 * i, load4(q + 4 * i) + g);
-    store4(q + 4 * j, load4(q + 4 * j) - g);
-    e4 += dv * g;
-  }
-  pq += __builtin_convertvector(e4, d4);
-  return hsum3(pq);
-}
-
-// Connection springs (both ends scattered): q += blocks p, returns p . blocks p.
-double cg_connections(int32_t begin, int32_t end, const int32_t* ca, const int32_t* cb,
-                      const float* blk, const float* p, float* q) {
-  d4 pq = {0, 0, 0, 0};
-  for (int32_t s = begin; s < end; ++s) {
-    const int32_t i = ca[s], j = cb[s];
-    const f4 dv = load4(p + 4 * i) - load4(p + 4 * j);
-    const f4 b = load4(blk + 4 * s);
-    const f4 wv = reinterpret_cast<f4>(reinterpret_cast<i4>(b) & kXYZ);
-    const f4 g = b[3] * dv + dot3(dv, b) * wv;
-    store4(q + 4 * i, load4(q + 4 * i) + g);
-    store4(q + 4 * j, load4(q + 4 * j) - g);
-    pq += __builtin_convertvector(dv * g, d4);
-  }
-  return hsum3(pq);
+  const f8 e2 = e[0] + e[1];
+  pq += __builtin_convertvector(__builtin_shufflevector(e2, e2, 0, 1, 2, 3) + __builtin_shufflevector(e2, e2, 4, 5, 6, 7), d4);
+  return hsum3(pq) + cg_springs(t, send, sa, sb, blk, p, q);  // with the last 0-3 springs
 }
 
 // Flexion springs' Gauss-Newton blocks: g . p over the spring's four vertices, and q += c g.
@@ -797,9 +787,9 @@ void pcg_component(ImplicitSolve& S, int32_t comp) {
   // A float CG cannot reduce the residual much below float precision (kCgFloatFloor): with any
   // tolerance below that (the default 1e-8 too) it stops there. With cg_tolerance = 0 ("always
   // run cg_iterations", as the benchmark asks) it restarts from the true residual b - A x there
-  // instead of iterating on: the recursive residual would sink into denormals, where its products lose all precision
-  // and the iteration diverges. A restart costs one matrix-vector product, like an iteration, and
-  // counts as one.
+  // instead of iterating on: the recursive residual would sink into denormals, where its
+  // products lose all precision and the iteration diverges. A restart costs one matrix-vector
+  // product, like an iteration, and counts as one.
   const bool restarts = m.cg_tolerance <= 0.0;
   const double tol = std::max(m.cg_tolerance, kCgFloatFloor);
   const double tol2 = tol * tol * rr0;
@@ -819,7 +809,7 @@ void pcg_component(ImplicitSolve& S, int32_t comp) {
                    : cg_apply_organ<false>(g.vert_begin, g.vert_end, g.spring_begin, g.spring_end, sa, sbb,
                                            blk, w.cg_mass.data(), inv, r, pp, q, 0.0f, springs);
     }
-    if (ce > cb) pq += cg_connections(cb, ce, m.conn_a.data(), m.conn_b.data(), w.cjac.data(), pp, q);
+    if (ce > cb) pq += cg_springs(cb, ce, m.conn_a.data(), m.conn_b.data(), w.cjac.data(), pp, q);
     for (int32_t k = ob; k < oe; ++k) {
       const int32_t o = m.component_organs[k];
       if (!s.organ_awake[o]) continue;
@@ -1062,8 +1052,10 @@ Work make_work(const Model& m) {
   for (auto* v : {&w.fx, &w.fy, &w.fz, &w.lap_x, &w.lap_y, &w.lap_z, &w.area2, &w.half_bk, &w.px,
                   &w.py, &w.pz, &w.free_mask, &w.good_x, &w.good_y, &w.good_z})
     v->assign(n, 0.0);
+  const int threads = std::min<int>(m.threads, static_cast<int>(m.organs.size()));
   // Implicit solver buffers only when a step can be implicit: asked for, or the guard's fallback.
   if (m.integrator == Integrator::implicit || m.guard) {
+    w.flex_grad.assign(12 * static_cast<size_t>(m.nflex), 0.0);
     for (auto* v : {&w.rx, &w.ry, &w.rz, &w.diag_x, &w.diag_y, &w.diag_z}) v->assign(n, 0.0);
     for (auto* v : {&w.cg_b, &w.cg_r, &w.cg_p, &w.cg_q, &w.cg_x, &w.cg_inv}) v->assign(4 * n, 0.0f);
     w.cg_mass.resize(n);
@@ -1085,12 +1077,10 @@ Work make_work(const Model& m) {
         }
     }
     // one chunk scratch per worker thread
-    w.cg_tmp.assign(6 * static_cast<size_t>(kCgChunk) * std::max(1, std::min<int>(m.threads, static_cast<int>(m.organs.size()))), 0.0);
+    w.cg_tmp.assign(6 * static_cast<size_t>(kCgChunk) * std::max(1, threads), 0.0);
     w.cg_done.assign(m.component_begin.empty() ? 0 : m.component_begin.size() - 1, 0);
   }
-  w.flex_grad.assign(12 * static_cast<size_t>(m.nflex), 0.0);
   w.organ_flag.assign(m.organs.size(), 0);
-  const int threads = std::min<int>(m.threads, static_cast<int>(m.organs.size()));
   if (threads > 1) {
     // Organs to threads, largest first onto the least loaded (LPT), by spring + face count.
     w.workers = std::make_shared<WorkerPool>(threads);

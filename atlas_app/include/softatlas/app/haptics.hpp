@@ -196,5 +196,7 @@ struct CpuPlan {
 CpuPlan plan_cpus();
 // Restricts the calling thread to `cpus` (no-op when empty); false if the kernel refused.
 bool pin_current_thread(const std::vector<int>& cpus);
+// The same for one core (no-op when cpu < 0, as CpuPlan::haptic_cpu is without a plan).
+bool pin_current_thread(int cpu);
 
 }  // namespace softatlas::app

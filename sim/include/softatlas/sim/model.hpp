@@ -141,9 +141,6 @@ struct Model {
   std::vector<double> spring_rest;     // l0 (Hooke) or rest elastica length l_e0 (nmsm)
   std::vector<double> spring_length0;  // plain rest length l0 (compensation, guard)
   std::vector<double> spring_k, spring_d;
-  // CSR rows of the edge springs by their smaller end (spring_a < spring_b): the springs of row v
-  // are [spring_row_begin[v], spring_row_begin[v+1]); #V+1 entries.
-  std::vector<int32_t> spring_row_begin;
   int32_t nconn = 0;                   // inter-organ connection springs
   std::vector<int32_t> conn_a, conn_b;
   std::vector<double> conn_rest, conn_k, conn_d;
