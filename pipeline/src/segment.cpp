@@ -1,12 +1,18 @@
 // Stage 2b, seeded segmentation without a label map.
 //
-// Competitive region growing (the ordered-propagation form of grow-cut: each voxel goes to the
-// seed front that reaches it at the lowest path cost, Vezhnevets & Konouchine, GrowCut 2005;
-// cost as in geodesic segmentation, Criminisi et al. 2008):
-//   cost(p -> q) = |p - q|_mm * (1 + w_edge * |I(q) - I(p)| / sigma_edge)
-// and a voxel may join organ l only if |I(q) - mu_l| <= k * sigma_l, with mu_l, sigma_l taken
-// from the seed neighbourhoods. Background seeds compete with no intensity window. Then per
-// organ: closing, hole filling, opening, and only the components that hold a seed are kept.
+// 1. Competitive region growing on the image smoothed at about the voxel size: all seed fronts
+//    advance at once and each voxel goes to the front that reaches it over the lowest barrier,
+//    the largest intensity step along the path (then the shortest path), as in relative fuzzy
+//    connectedness (Udupa & Saha 2003); the ordered-propagation form of grow-cut (Vezhnevets &
+//    Konouchine 2005). A voxel may join organ l only inside its window
+//    [mu_l - 2.5 sigma_l, mu_l + 4 sigma_l], mu_l and sigma_l from the seed neighbourhoods.
+//    Background seeds compete with no window.
+// 2. Vessels listed in SegmentOptions::tubes (the aorta) are replaced by a tube fitted to their
+//    region (tube.hpp): unenhanced stretches filled, bone and branches cut.
+// 3. Organs listed in SegmentOptions::walls (the heart) grow a wall from their region into
+//    enhanced soft tissue (the myocardium), competing with the background seeds.
+// 4. Per organ: closing, hole filling, opening; only the components that hold a seed are kept.
+// Measurements of each step and of the alternatives tried: docs/pipeline.md.
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -17,6 +23,7 @@
 #include "softatlas/pipeline/label_table.hpp"
 #include "softatlas/pipeline/segment.hpp"
 #include "softatlas/sim/error.hpp"
+#include "tube.hpp"
 
 namespace softatlas::pipeline {
 namespace {
@@ -123,6 +130,31 @@ void keep_seeded(Mask& m, const std::array<int, 3>& d, const std::vector<size_t>
   m.swap(keep);
 }
 
+// Separable Gaussian blur with sigma in voxels per axis (kernel cut at 3 sigma, clamped edges).
+std::vector<float> gaussian(const std::vector<float>& in, const std::array<int, 3>& d, const double sigma[3]) {
+  std::vector<float> a = in, b(in.size());
+  const size_t stride[3] = {1, static_cast<size_t>(d[0]), static_cast<size_t>(d[0]) * d[1]};
+  for (int axis = 0; axis < 3; ++axis) {
+    if (sigma[axis] <= 0) continue;
+    const int r = static_cast<int>(std::ceil(3.0 * sigma[axis]));
+    std::vector<float> w(2 * r + 1);
+    double sum = 0;
+    for (int t = -r; t <= r; ++t) sum += w[t + r] = static_cast<float>(std::exp(-0.5 * t * t / (sigma[axis] * sigma[axis])));
+    for (float& x : w) x = static_cast<float>(x / sum);
+    for (size_t id = 0; id < a.size(); ++id) {
+      const int c = static_cast<int>((id / stride[axis]) % d[axis]);
+      float acc = 0;
+      for (int t = -r; t <= r; ++t) {
+        const int q = std::clamp(c + t, 0, d[axis] - 1);
+        acc += w[t + r] * a[id + (static_cast<long>(q) - c) * static_cast<long>(stride[axis])];
+      }
+      b[id] = acc;
+    }
+    a.swap(b);
+  }
+  return a;
+}
+
 }  // namespace
 
 Seeds read_seeds(const std::string& path) {
@@ -184,13 +216,10 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     }
     return ids;
   };
-  for (const auto& [name, pts] : seeds.organs) {
-    Region r{label_id(name), 0, 0, true, 0, 0, seed_voxels(pts, name)};
-    // Intensity model from the 5x5x5 neighbourhoods of all seeds together: mean and standard
-    // deviation of every sampled voxel. Measured alternatives are in docs/pipeline.md (median/MAD,
-    // a window spanning the per-seed means, the pooled within-neighbourhood sigma).
+  // Mean and standard deviation of the 5x5x5 neighbourhoods of the seeds together.
+  auto seed_stats = [&](const std::vector<size_t>& ids) {
     double s1 = 0, s2 = 0, cnt = 0;
-    for (size_t id : r.seeds) {
+    for (size_t id : ids) {
       const int i = static_cast<int>(id % d[0]), j = static_cast<int>((id / d[0]) % d[1]),
                 k = static_cast<int>(id / (static_cast<size_t>(d[0]) * d[1]));
       for (int c = -2; c <= 2; ++c)
@@ -202,27 +231,53 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
             s1 += v, s2 += v * v, cnt += 1;
           }
     }
-    r.mu = s1 / cnt;
+    const double mu = s1 / cnt;
+    return std::pair<double, double>{mu, std::sqrt(std::max(s2 / cnt - mu * mu, 0.0))};
+  };
+  for (const auto& [name, pts] : seeds.organs) {
+    Region r{label_id(name), 0, 0, true, 0, 0, seed_voxels(pts, name)};
+    // Intensity model from the 5x5x5 neighbourhoods of all seeds together: mean and standard
+    // deviation of every sampled voxel. Measured alternatives are in docs/pipeline.md (median/MAD,
+    // trimmed, per-seed windows, the pooled within-neighbourhood sigma). The window reaches
+    // further up than down: undiluted contrast at a caval inflow (800-900 HU) is blood too.
+    const auto [mu, sd] = seed_stats(r.seeds);
+    r.mu = mu;
     // Floor: CT noise; ceiling: a spread wider than soft tissue's contrast would admit fat and
     // muscle next to a vessel whose contrast fades along its length.
-    r.sigma = std::clamp(std::sqrt(std::max(s2 / cnt - r.mu * r.mu, 0.0)), 20.0, o.intensity_sigma_max_hu);
+    r.sigma = std::clamp(sd, 20.0, o.intensity_sigma_max_hu);
     r.lo = r.mu - o.intensity_sigma_scale * r.sigma;
-    r.hi = r.mu + o.intensity_sigma_scale * r.sigma;
+    r.hi = r.mu + o.intensity_sigma_scale_high * r.sigma;
     std::fprintf(stderr, "[softatlas segment] %s: %zu seeds, mean %.0f, sigma %.0f, window [%.0f, %.0f]\n",
                  name.c_str(), r.seeds.size(), r.mu, r.sigma, r.lo, r.hi);
     regions.push_back(r);
   }
   if (!seeds.background.empty()) regions.push_back(Region{0, 0, 100.0, false, 0, 0, seed_voxels(seeds.background, "background")});
 
-  // Ordered propagation (Dijkstra) of all fronts at once.
-  std::vector<float> cost(n, std::numeric_limits<float>::infinity());
+  // Growth, walls and tubes read the image smoothed at about the voxel size (CT noise of
+  // 50-80 HU per voxel would otherwise decide where fronts meet).
+  const double sigma[3] = {o.smoothing_mm / sp[0], o.smoothing_mm / sp[1], o.smoothing_mm / sp[2]};
+  const std::vector<float> smooth = gaussian(ct.values, d, sigma);
+
+  // Ordered propagation of all fronts at once. A path's cost is its largest intensity step (in
+  // bins of edge_bin_hu), then its length in mm: a voxel goes to the front that reaches it over
+  // the lowest barrier, whatever the distance (relative fuzzy connectedness, Udupa & Saha 2003).
+  // A plain sum of length and steps favours the nearest seed: along a 60 mm stretch of noisy
+  // contrast a background click 9 mm away won it (docs/pipeline.md).
+  struct Cost {
+    int barrier;
+    float length;
+    bool operator<(const Cost& x) const { return barrier != x.barrier ? barrier < x.barrier : length < x.length; }
+  };
+  const Cost unreached{std::numeric_limits<int>::max(), 0.0f};
+  std::vector<Cost> cost(n, unreached);
   std::vector<int16_t> owner(n, -1);
-  using Item = std::pair<float, std::pair<size_t, int>>;
-  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> heap;
+  using Item = std::pair<Cost, std::pair<size_t, int>>;
+  auto later = [](const Item& x, const Item& y) { return y.first < x.first; };
+  std::priority_queue<Item, std::vector<Item>, decltype(later)> heap(later);
   for (size_t r = 0; r < regions.size(); ++r)
     for (size_t s : regions[r].seeds) {
-      cost[s] = 0;
-      heap.push({0.0f, {s, static_cast<int>(r)}});
+      cost[s] = Cost{0, 0.0f};
+      heap.push({cost[s], {s, static_cast<int>(r)}});
     }
   const long sx = 1, sy = d[0], sz = static_cast<long>(d[0]) * d[1];
   const long off[6] = {-sx, sx, -sy, sy, -sz, sz};
@@ -231,26 +286,121 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     const auto [c, item] = heap.top();
     heap.pop();
     const auto [id, r] = item;
-    if (owner[id] >= 0 || c > cost[id]) continue;
+    if (owner[id] >= 0 || cost[id] < c) continue;
     owner[id] = static_cast<int16_t>(r);
     const Region& R = regions[r];
     const int i = static_cast<int>(id % d[0]), j = static_cast<int>((id / d[0]) % d[1]),
               k = static_cast<int>(id / (static_cast<size_t>(d[0]) * d[1]));
     const bool ok[6] = {i > 0, i + 1 < d[0], j > 0, j + 1 < d[1], k > 0, k + 1 < d[2]};
-    const double vi = ct.values[id];
+    const double vi = smooth[id];
     for (int nb = 0; nb < 6; ++nb) {
       if (!ok[nb]) continue;
       const size_t q = static_cast<size_t>(static_cast<long>(id) + off[nb]);
       if (owner[q] >= 0) continue;
-      const double vq = ct.values[q];
+      const double vq = smooth[q];
       if (R.window && (vq < R.lo || vq > R.hi)) continue;
-      const float nc = static_cast<float>(c + step_mm[nb] * (1.0 + o.edge_weight * std::abs(vq - vi) / o.edge_sigma_hu));
+      const Cost nc{std::max(c.barrier, static_cast<int>(std::abs(vq - vi) / o.edge_bin_hu)),
+                    c.length + static_cast<float>(step_mm[nb])};
       if (nc < cost[q]) {
         cost[q] = nc;
         heap.push({nc, {q, r}});
       }
     }
   }
+  const bool any_tube = std::any_of(regions.begin(), regions.end(), [&](const Region& R) {
+    return R.id != 0 && std::any_of(o.tubes.begin(), o.tubes.end(), [&](const std::string& t) { return label_id(t) == R.id; });
+  });
+  bool any_wall = false;
+  for (const auto& R : regions)
+    for (const auto& [name, wall] : o.walls) any_wall |= R.id != 0 && label_id(name) == R.id;
+
+  // Tubes (large vessels).
+  for (size_t r = 0; any_tube && r < regions.size(); ++r) {
+    if (regions[r].id == 0 ||
+        std::none_of(o.tubes.begin(), o.tubes.end(), [&](const std::string& t) { return label_id(t) == regions[r].id; }))
+      continue;
+    std::vector<char> other(n, 0);
+    for (size_t id = 0; id < n; ++id) other[id] = owner[id] >= 0 && owner[id] != static_cast<int16_t>(r) && regions[owner[id]].id != 0;
+    for (const auto& R : regions)  // a background click is never inside the tube
+      if (R.id == 0)
+        for (size_t s : R.seeds) other[s] = 1;
+    TubeOptions to;
+    to.stop_hu = o.tube_stop_hu;
+    to.bright_hu = regions[r].lo + 0.5 * regions[r].sigma;
+    TubeReport rep;
+    const std::vector<char> tube = vessel_tube(d, sp, smooth, owner, static_cast<int>(r), other, regions[r].seeds, to, &rep);
+    if (tube.empty()) {
+      std::fprintf(stderr, "[softatlas segment] %s: no tube (the seeds give no centreline), region kept\n",
+                   label_name(regions[r].id).c_str());
+      continue;
+    }
+    size_t kept = 0, added = 0, dropped = 0;
+    for (size_t id = 0; id < n; ++id) {
+      if (owner[id] == static_cast<int16_t>(r)) {
+        if (tube[id]) ++kept;
+        else owner[id] = -1, ++dropped;
+      } else if (tube[id]) {
+        owner[id] = static_cast<int16_t>(r), ++added;
+      }
+    }
+    std::fprintf(stderr,
+                 "[softatlas segment] %s: tube of %zu sections, %.0f mm long, median radius %.1f mm; %zu voxels kept, "
+                 "%zu added, %zu outside dropped\n",
+                 label_name(regions[r].id).c_str(), rep.sections, rep.length_mm, rep.median_radius_mm, kept, added, dropped);
+  }
+
+  // Walls (the heart's myocardium): a second ordered propagation by geodesic distance in mm from
+  // the regions of organs with a wall, through voxels that no organ took, whose smoothed
+  // intensity is at least the wall's min_hu and that lie below the organ's window (brighter
+  // voxels are another structure's blood). Background seeds propagate through the same tissue,
+  // so a background click in the wall stops it halfway.
+  if (any_wall) {
+    std::vector<double> wall_min(regions.size(), 0), wall_mm(regions.size(), 0), wall_hi(regions.size(), 0);
+    double lowest = std::numeric_limits<double>::infinity(), widest = 0;
+    for (size_t r = 0; r < regions.size(); ++r)
+      for (const auto& [name, wall] : o.walls)
+        if (regions[r].id != 0 && label_id(name) == regions[r].id) {
+          wall_min[r] = wall.min_hu, wall_mm[r] = wall.thickness_mm, wall_hi[r] = regions[r].lo;
+          lowest = std::min(lowest, wall_min[r]), widest = std::max(widest, wall_mm[r]);
+        }
+    for (size_t r = 0; r < regions.size(); ++r)
+      if (regions[r].id == 0) wall_min[r] = lowest, wall_mm[r] = widest, wall_hi[r] = std::numeric_limits<double>::infinity();
+    auto is_organ = [&](size_t id) { return owner[id] >= 0 && regions[owner[id]].id != 0; };
+    std::vector<float> dist(n, std::numeric_limits<float>::infinity());
+    std::vector<int16_t> front(n, -1);
+    using WallItem = std::pair<float, std::pair<size_t, int>>;
+    std::priority_queue<WallItem, std::vector<WallItem>, std::greater<WallItem>> walls;
+    for (size_t id = 0; id < n; ++id)
+      if (is_organ(id) && wall_mm[owner[id]] > 0) dist[id] = 0, walls.push({0.0f, {id, owner[id]}});
+    for (size_t r = 0; r < regions.size(); ++r)
+      if (regions[r].id == 0)
+        for (size_t s : regions[r].seeds) dist[s] = 0, walls.push({0.0f, {s, static_cast<int>(r)}});
+    while (!walls.empty()) {
+      const auto [c, item] = walls.top();
+      walls.pop();
+      const auto [id, r] = item;
+      if (front[id] >= 0 || c > dist[id]) continue;
+      front[id] = static_cast<int16_t>(r);
+      const int i = static_cast<int>(id % d[0]), j = static_cast<int>((id / d[0]) % d[1]),
+                k = static_cast<int>(id / (static_cast<size_t>(d[0]) * d[1]));
+      const bool ok[6] = {i > 0, i + 1 < d[0], j > 0, j + 1 < d[1], k > 0, k + 1 < d[2]};
+      for (int nb = 0; nb < 6; ++nb) {
+        if (!ok[nb]) continue;
+        const size_t q = static_cast<size_t>(static_cast<long>(id) + off[nb]);
+        if (front[q] >= 0 || is_organ(q)) continue;
+        if (smooth[q] < wall_min[r] || ct.values[q] >= wall_hi[r]) continue;
+        const float nd = static_cast<float>(c + step_mm[nb]);
+        if (nd > wall_mm[r] || nd >= dist[q]) continue;
+        dist[q] = nd;
+        walls.push({nd, {q, r}});
+      }
+    }
+    size_t grown = 0;
+    for (size_t id = 0; id < n; ++id)
+      if (front[id] >= 0 && regions[front[id]].id != 0 && !is_organ(id)) owner[id] = front[id], ++grown;
+    std::fprintf(stderr, "[softatlas segment] walls: %zu voxels added\n", grown);
+  }
+
   Volume out;
   out.dims = ct.dims;
   out.ijk_to_ras = ct.ijk_to_ras;

@@ -1,5 +1,6 @@
-// Stage 2b, seeded segmentation: competitive region growing (grow-cut style) on intensity with
-// edge weighting, then hole filling and morphological clean-up.
+// Stage 2b, seeded segmentation: competitive region growing (fuzzy-connectedness style: fronts
+// meet at the lowest intensity barrier), a tube model for large vessels, a wall model for the
+// heart, then hole filling and morphological clean-up (pipeline/src/segment.cpp).
 #pragma once
 
 #include <array>
@@ -21,11 +22,27 @@ struct Seeds {
 Seeds read_seeds(const std::string& path);
 
 struct SegmentOptions {
-  double intensity_sigma_scale = 2.5;  // accept up to this many seed-sigma from the seed mean
-  double edge_weight = 1.0;            // weight of the gradient term in the path cost
-  double intensity_sigma_max_hu = 100.0;  // cap of the seed sigma
-  double edge_sigma_hu = 30.0;         // intensity step that doubles the cost of a step
+  double intensity_sigma_scale = 2.5;       // accept down to this many seed-sigma below the seed mean
+  double intensity_sigma_scale_high = 4.0;  // and up to this many above (dense contrast at an inflow)
+  double intensity_sigma_max_hu = 100.0;    // cap of the seed sigma
+  double edge_bin_hu = 10.0;                // intensity steps are compared in bins of this size
   int closing_radius = 1;              // voxels, morphological clean-up
+  // Organs whose label holds a contrast-filled cavity and a muscular wall that no blood-pool
+  // window admits (the heart: chambers + myocardium). After the competitive growth, such an
+  // organ grows a wall from its region through voxels whose smoothed intensity is at least
+  // min_hu (and below the organ's window) up to thickness_mm, competing with the other organs and
+  // the background seeds. See docs/pipeline.md for the measurements behind the defaults.
+  struct Wall {
+    double min_hu;
+    double thickness_mm;
+  };
+  std::map<std::string, Wall> walls = {{"heart", {95.0, 10.5}}};
+  // Vessels replaced by a tube fitted to the grown region (centreline between the farthest seeds,
+  // round cross-sections bounded by fat or air; see pipeline/src/tube.hpp): an uneven contrast
+  // bolus leaves part of the lumen dark, and a wide window leaks into bone and branches.
+  std::vector<std::string> tubes = {"aorta"};
+  double tube_stop_hu = -30;       // the tube's wall ends where the smoothed image drops below this
+  double smoothing_mm = 1.0;  // Gaussian sigma of the image the growth, walls and tubes read
 };
 
 // Label map on the CT's grid with TotalSegmentator ids. `where` names the seed file in errors.
