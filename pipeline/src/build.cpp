@@ -67,6 +67,21 @@ struct LoadedLabels {
   std::map<int, size_t> counts;  // label value -> voxels (0 excluded)
 };
 
+// A label map's own table (NIfTI extension) names its values when it has one; otherwise the
+// TotalSegmentator table does.
+int value_of(const LoadedLabels& l, const std::string& name) {
+  if (l.volume.label_names.empty()) return label_id(name);
+  for (const auto& [v, n] : l.volume.label_names)
+    if (n == name) return v;
+  return 0;
+}
+
+std::string name_of(const LoadedLabels& l, int value) {
+  if (l.volume.label_names.empty()) return label_name(value);
+  const auto it = l.volume.label_names.find(value);
+  return it == l.volume.label_names.end() ? std::string() : it->second;
+}
+
 bool boxes_overlap(const std::array<double, 6>& a, const std::array<double, 6>& b, double pad) {
   for (int d = 0; d < 3; ++d)
     if (a[d] > b[d + 3] + pad || b[d] > a[d + 3] + pad) return false;
@@ -256,9 +271,9 @@ BuildResult build_organ_set(const BuildOptions& o) {
             for (const auto& [v, n] : l.counts) j.values.push_back(v);
             return j;
           }
-        } else if (j.label > 0 && l.counts.count(j.label)) {
+        } else if (const int v = value_of(l, name); v != 0 && l.counts.count(v)) {
           j.source = static_cast<int>(s);
-          j.values = {j.label};
+          j.values = {v};
           return j;
         }
       }
@@ -272,7 +287,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
           continue;
         }
         for (const auto& [v, n] : l.counts) {
-          const std::string nm = label_name(v);
+          const std::string nm = name_of(l, v);
           if (!nm.empty() && is_default_soft_organ(nm) &&
               std::find(names.begin(), names.end(), nm) == names.end())
             names.push_back(nm);

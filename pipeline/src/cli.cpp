@@ -163,7 +163,13 @@ int cmd_segment(const std::vector<std::string>& args) {
     json out;
     for (const auto& [organ, pts] : s.organs) {
       if (!name.empty() && name != organ) continue;
-      out[organ] = dice(labels, label_id(organ), ref, name.empty() ? label_id(organ) : 1);
+      int ref_value = name.empty() ? label_id(organ) : 1;
+      if (name.empty() && !ref.label_names.empty()) {  // the reference's own table, if it has one
+        ref_value = 0;
+        for (const auto& [v, n] : ref.label_names)
+          if (n == organ) ref_value = v;
+      }
+      out[organ] = dice(labels, label_id(organ), ref, ref_value);
     }
     std::cout << out.dump(2) << "\n";
   }

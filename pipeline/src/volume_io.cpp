@@ -23,12 +23,14 @@
 #include <gdcmPixelFormat.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <map>
 #include <fstream>
+#include <map>
+#include <regex>
 #include <sstream>
 
 #include "softatlas/io/mesh_io.hpp"
@@ -191,6 +193,60 @@ void check_nifti_length(const std::string& path) {
                                std::to_string(expected));
 }
 
+// Label names from the header extensions of a NIfTI-1 file: a Caret/CIFTI XML extension with
+// <Label Key="N" ...><![CDATA[name]]></Label> entries (TotalSegmentator's multi-label maps;
+// ecode 0 or 30). Other extensions are skipped; a malformed extension list names the file.
+std::map<int, std::string> read_nifti_label_names(const std::string& path) {
+  std::map<int, std::string> names;
+  gzFile f = gzopen(path.c_str(), "rb");
+  if (!f) return names;
+  unsigned char hdr[352];
+  const int got = gzread(f, hdr, sizeof(hdr));
+  auto i32 = [](const unsigned char* b, bool swap) {
+    uint32_t u;
+    std::memcpy(&u, b, 4);
+    if (swap) u = __builtin_bswap32(u);
+    return static_cast<int32_t>(u);
+  };
+  int32_t size = got == 352 ? i32(hdr, false) : 0;
+  const bool swap = size != 348;
+  if (swap) size = got == 352 ? i32(hdr, true) : 0;
+  if (size != 348 || hdr[348] == 0) {  // not NIfTI-1, or no extension flag
+    gzclose(f);
+    return names;
+  }
+  float vox_offset_f;
+  uint32_t vo;
+  std::memcpy(&vo, hdr + 108, 4);
+  if (swap) vo = __builtin_bswap32(vo);
+  std::memcpy(&vox_offset_f, &vo, 4);
+  const long vox_offset = static_cast<long>(vox_offset_f);
+  long pos = 352;
+  while (pos + 8 <= vox_offset) {
+    unsigned char eh[8];
+    if (gzread(f, eh, 8) != 8) break;
+    const int32_t esize = i32(eh, swap), ecode = i32(eh + 4, swap);
+    if (esize < 8 || esize % 16 != 0 || pos + esize > vox_offset) {
+      gzclose(f);
+      throw InputError(path, "corrupt NIfTI header extension (size " + std::to_string(esize) + " at byte " +
+                                 std::to_string(pos) + ")");
+    }
+    std::string content(static_cast<size_t>(esize - 8), '\0');
+    if (gzread(f, content.data(), static_cast<unsigned>(content.size())) != static_cast<int>(content.size())) break;
+    pos += esize;
+    if ((ecode != 0 && ecode != 30) || content.find("<LabelTable>") == std::string::npos) continue;
+    static const std::regex label(R"re(<Label\s+Key="(-?\d+)"[^>]*>\s*(?:<!\[CDATA\[([^\]]*)\]\]>|([^<]*))\s*</Label>)re");
+    for (auto it = std::sregex_iterator(content.begin(), content.end(), label); it != std::sregex_iterator(); ++it) {
+      const int key = std::stoi((*it)[1].str());
+      std::string name = (*it)[2].matched ? (*it)[2].str() : (*it)[3].str();
+      while (!name.empty() && std::isspace(static_cast<unsigned char>(name.back()))) name.pop_back();
+      if (key != 0 && !name.empty()) names[key] = name;
+    }
+  }
+  gzclose(f);
+  return names;
+}
+
 Volume read_nifti(const std::string& path) {
   check_nifti_length(path);
   Volume v;
@@ -220,6 +276,7 @@ Volume read_nifti(const std::string& path) {
     a[r * 4 + 3] = t;
   }
   v.ijk_to_ras = a;
+  v.label_names = read_nifti_label_names(path);
   return v;
 }
 

@@ -6,8 +6,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "softatlas/io/organ_set.hpp"
@@ -100,6 +103,55 @@ TEST(Build, ChestCropHeartAndPulmonaryArteryThroughTheCommand) {
     found_heart |= name == "heart";
   }
   EXPECT_TRUE(found_heart);
+}
+
+// Adds a Caret/CIFTI XML label table (as TotalSegmentator writes) as a NIfTI header extension
+// to an uncompressed .nii written by write_label_nifti (352-byte header, no extension yet).
+void add_caret_label_table(const std::string& path, const std::map<int, std::string>& names) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  in.close();
+  std::string xml = "<?xml version=\"1.0\" encoding=\"UTF-8\"?> <CaretExtension> <LabelTable>\n";
+  for (const auto& [k, n] : names)
+    xml += "<Label Key=\"" + std::to_string(k) + "\" Red=\"1\" Green=\"0\" Blue=\"0\" Alpha=\"1\"><![CDATA[" + n + "]]></Label>\n";
+  xml += "</LabelTable> </CaretExtension>";
+  const int32_t esize = static_cast<int32_t>((8 + xml.size() + 15) / 16 * 16), ecode = 0;
+  xml.resize(static_cast<size_t>(esize - 8), '\0');
+  const float vox_offset = static_cast<float>(352 + esize);
+  std::memcpy(&bytes[108], &vox_offset, 4);
+  bytes[348] = 1;
+  std::string ext(8, '\0');
+  std::memcpy(&ext[0], &esize, 4);
+  std::memcpy(&ext[4], &ecode, 4);
+  bytes.insert(352, ext + xml);
+  std::ofstream(path, std::ios::binary) << bytes;
+}
+
+// A label map with its own table: value 7 is the heart there (the pancreas in TotalSegmentator's
+// numbering), and `--organs heart` finds it by name.
+TEST(Build, LabelMapWithItsOwnTableIsReadByName) {
+  test::Scratch tmp;
+  Volume m = read_volume(chest("heart_on_ct_heart_crop_grid.nii.gz"));
+  for (float& x : m.values) x = x != 0 ? 7.0f : 0.0f;
+  write_label_nifti(m, tmp("own.nii"));
+  add_caret_label_table(tmp("own.nii"), {{7, "heart"}, {9, "spleen"}});
+  const Volume own = read_volume(tmp("own.nii"));
+  EXPECT_EQ(own.values, m.values);  // the extension moved the data, the reader followed vox_offset
+  ASSERT_EQ(own.label_names.size(), 2u);
+  EXPECT_EQ(own.label_names.at(7), "heart");
+  ASSERT_EQ(cli_main({"build", chest("ct_heart_crop.nii.gz"), "--labels", tmp("own.nii"), "--organs", "heart",
+                      "--budget", "heart=800", "-q", "-o", tmp("set")}),
+            0);
+  const io::OrganSet set = io::read_organ_set(tmp("set"));
+  ASSERT_EQ(set.organs.size(), 1u);
+  EXPECT_EQ(set.organs[0].name, "heart");
+  EXPECT_EQ(set.organs[0].label, 51);
+  // Without the table, 7 is the pancreas and the heart is absent.
+  write_label_nifti(m, tmp("plain.nii"));
+  EXPECT_THROW(cli_main({"build", chest("ct_heart_crop.nii.gz"), "--labels", tmp("plain.nii"), "--organs", "heart",
+                         "-q", "-o", tmp("set2")}),
+               InputError);
+  EXPECT_FALSE(fs::exists(tmp("set2")));
 }
 
 TEST(Build, ConfigFileAndBudgetsFromYaml) {

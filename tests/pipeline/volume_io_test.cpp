@@ -166,6 +166,18 @@ TEST(VolumeIo, WrittenLabelMapReadsBackOnTheSameGrid) {
   for (int c = 0; c < 16; ++c) EXPECT_NEAR(w.ijk_to_ras[c], v.ijk_to_ras[c], 1e-4);
 }
 
+// The shared multi-label map carries TotalSegmentator's table in a Caret XML header extension
+// (data README); a single-label mask has none.
+TEST(VolumeIo, LabelNamesFromTheNiftiHeaderExtension) {
+  const Volume v = read_volume(abdomen("example_seg_dicom.nii.gz"));
+  ASSERT_EQ(v.label_names.size(), 117u);
+  EXPECT_EQ(v.label_names.at(1), "spleen");
+  EXPECT_EQ(v.label_names.at(5), "liver");
+  EXPECT_EQ(v.label_names.at(52), "aorta");
+  for (const auto& [value, name] : v.label_names) EXPECT_EQ(label_id(name), value) << name;
+  EXPECT_TRUE(read_volume(chest("heart.nii.gz")).label_names.empty());
+}
+
 TEST(LabelTable, MatchesTheSharedTsv) {
   std::ifstream in(test::shared("ct/totalsegmentator_label_table.tsv"));
   std::string line;

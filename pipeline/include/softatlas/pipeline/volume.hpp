@@ -2,6 +2,7 @@
 #pragma once
 
 #include <array>
+#include <map>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -17,6 +18,9 @@ struct Volume {
   std::array<double, 16> ijk_to_ras{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
   std::string path;
   std::string format;  // nifti | nrrd | metaimage | dicom
+  // Label value -> name, from a NIfTI header extension holding a Caret/CIFTI <LabelTable> (as
+  // TotalSegmentator writes its multi-label maps); empty when the file has none.
+  std::map<int, std::string> label_names;
 
   size_t voxel_count() const { return values.size(); }
   size_t index(int i, int j, int k) const {
