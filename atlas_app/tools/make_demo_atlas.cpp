@@ -167,31 +167,6 @@ TriMesh repair(const TriMesh& in, int target_faces, const std::string& name) {
   return out;
 }
 
-// The `count` vertices furthest along `dir`, spread out: a vertex is taken only if it is at
-// least `spacing_mm` from those already taken.
-std::vector<int32_t> extreme_vertices(const TriMesh& m, const double dir[3], int count,
-                                      double spacing_mm) {
-  std::vector<int32_t> order(m.vertex_count());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int32_t>(i);
-  auto score = [&](int32_t i) {
-    return m.vertices[3 * i] * dir[0] + m.vertices[3 * i + 1] * dir[1] + m.vertices[3 * i + 2] * dir[2];
-  };
-  std::sort(order.begin(), order.end(), [&](int32_t a, int32_t b) { return score(a) > score(b); });
-  std::vector<int32_t> out;
-  for (int32_t i : order) {
-    bool far = true;
-    for (int32_t j : out) {
-      double d2 = 0;
-      for (int k = 0; k < 3; ++k) d2 += std::pow(m.vertices[3 * i + k] - m.vertices[3 * j + k], 2);
-      if (d2 < spacing_mm * spacing_mm) far = false;
-    }
-    if (far) out.push_back(i);
-    if (static_cast<int>(out.size()) == count) break;
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
 // Connection springs: the `count` closest vertex pairs between two organs, spread at least
 // `spacing_mm` apart on organ a, only pairs closer than max_mm.
 std::vector<softatlas::io::Connection> connect(const std::string& na, const TriMesh& a,
@@ -280,10 +255,10 @@ int main(int argc, char** argv) {
       e.material.tau_s = -1.0;
       // Anchors: the posterior surface lies on the body wall (RAS: -y is posterior); the liver
       // also hangs from the diaphragm (+z).
-      const double posterior[3] = {0, -1, 0}, superior[3] = {0, 0, 1};
-      e.fixed_vertices = extreme_vertices(e.mesh, posterior, 6, 15.0);
+      const std::array<double, 3> posterior{0, -1, 0}, superior{0, 0, 1};
+      e.fixed_vertices = softatlas::io::extreme_vertices(e.mesh, posterior, 6, 15.0);
       if (e.name == "liver") {
-        auto top = extreme_vertices(e.mesh, superior, 6, 20.0);
+        auto top = softatlas::io::extreme_vertices(e.mesh, superior, 6, 20.0);
         e.fixed_vertices.insert(e.fixed_vertices.end(), top.begin(), top.end());
         std::sort(e.fixed_vertices.begin(), e.fixed_vertices.end());
         e.fixed_vertices.erase(std::unique(e.fixed_vertices.begin(), e.fixed_vertices.end()),

@@ -377,4 +377,26 @@ TriMesh read_ply(const std::string& path) {
   return mesh;
 }
 
+std::vector<int32_t> extreme_vertices(const TriMesh& m, const std::array<double, 3>& dir, int count, double spacing_mm) {
+  std::vector<int32_t> order(m.vertex_count());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int32_t>(i);
+  auto score = [&](int32_t i) {
+    return m.vertices[3 * i] * dir[0] + m.vertices[3 * i + 1] * dir[1] + m.vertices[3 * i + 2] * dir[2];
+  };
+  std::sort(order.begin(), order.end(), [&](int32_t a, int32_t b) { return score(a) > score(b); });
+  std::vector<int32_t> out;
+  for (int32_t i : order) {
+    if (static_cast<int>(out.size()) >= count) break;
+    bool far = true;
+    for (int32_t j : out) {
+      double d2 = 0;
+      for (int k = 0; k < 3; ++k) d2 += (m.vertices[3 * i + k] - m.vertices[3 * j + k]) * (m.vertices[3 * i + k] - m.vertices[3 * j + k]);
+      far = far && d2 >= spacing_mm * spacing_mm;
+    }
+    if (far) out.push_back(i);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
 }  // namespace softatlas::io

@@ -160,6 +160,10 @@ void apply_build_config(const std::string& path, BuildOptions* o) {
       o->connect.spacing_mm = num(v, key);
     } else if (key == "connect_stiffness") {
       o->connect.stiffness = num(v, key);
+    } else if (key == "anchor_count") {
+      o->connect.anchor_count = static_cast<int>(num(v, key));
+    } else if (key == "anchor_spacing_mm") {
+      o->connect.anchor_spacing_mm = num(v, key);
     } else if (key == "connect_pairs") {
       if (!v.IsSequence()) throw InputError(where(v, key), "expected a list of [organ_a, organ_b]");
       o->connect.pairs.clear();
@@ -171,7 +175,7 @@ void apply_build_config(const std::string& path, BuildOptions* o) {
       throw InputError(where(kv.first, key),
                        "unknown key (expected organs, budget, smoothing_iterations, smoothing_passband, "
                        "speck_share, remesh_iterations, wrap_alpha_mm, connect_distance_mm, "
-                       "connect_spacing_mm, connect_stiffness, connect_pairs)");
+                       "connect_spacing_mm, connect_stiffness, connect_pairs, anchor_count, anchor_spacing_mm)");
     }
   }
 }
@@ -435,6 +439,14 @@ BuildResult build_organ_set(const BuildOptions& o) {
     qpairs.push_back({{"organ_a", p.organ_a}, {"organ_b", p.organ_b}, {"closest_mm", p.closest_mm},
                       {"springs", p.springs}, {"default_pair", p.default_pair}});
   quality["connections"] = qpairs;
+  // Anchors, for organ sets in patient RAS (a CT build; meshes keep their own frame).
+  if (!mesh_mode && o.connect.anchor_count > 0) {
+    for (auto& e : set.organs) {
+      e.fixed_vertices = io::extreme_vertices(e.mesh, {0, -1, 0}, o.connect.anchor_count, o.connect.anchor_spacing_mm);
+      quality["organs"][e.name]["anchors"] = e.fixed_vertices.size();
+    }
+    say("anchors: %s posterior vertices per organ (body wall)", std::to_string(o.connect.anchor_count));
+  }
   result.times.add("connect", since(t0));
 
   // ---- stage 6: write ----
@@ -449,6 +461,8 @@ BuildResult build_organ_set(const BuildOptions& o) {
   provenance_params["wrap_alpha_mm"] = o.remesh.wrap_alpha_mm;
   provenance_params["connect_distance_mm"] = o.connect.distance_mm;
   provenance_params["connect_spacing_mm"] = o.connect.spacing_mm;
+  provenance_params["anchor_count"] = o.connect.anchor_count;
+  provenance_params["anchor_spacing_mm"] = o.connect.anchor_spacing_mm;
   provenance_params["connect_stiffness"] = o.connect.stiffness;
   provenance["parameters"] = provenance_params.dump();
   set.provenance = provenance;

@@ -57,6 +57,21 @@ TEST(Build, ChestCropHeartAndPulmonaryArteryThroughTheCommand) {
     EXPECT_GE(r.share_angle_ge_20, 0.99) << e.name;
   }
   EXPECT_NEAR(softatlas::sim::enclosed_volume(heart->mesh.vertices, heart->mesh.faces) / (n * 3.375), 1.0, 0.15);
+  // Anchors: 6 vertices per organ on its posterior side (RAS -y), at least 15 mm apart.
+  for (const auto& e : set.organs) {
+    ASSERT_EQ(e.fixed_vertices.size(), 6u) << e.name;
+    double ymin = 1e300, ymax = -1e300;
+    for (size_t v = 0; v < e.mesh.vertex_count(); ++v)
+      ymin = std::min(ymin, e.mesh.vertices[3 * v + 1]), ymax = std::max(ymax, e.mesh.vertices[3 * v + 1]);
+    for (size_t a = 0; a < e.fixed_vertices.size(); ++a) {
+      const double* p = &e.mesh.vertices[3 * static_cast<size_t>(e.fixed_vertices[a])];
+      EXPECT_LE(p[1], ymin + 0.25 * (ymax - ymin)) << e.name;
+      for (size_t b = 0; b < a; ++b) {
+        const double* q = &e.mesh.vertices[3 * static_cast<size_t>(e.fixed_vertices[b])];
+        EXPECT_GE(std::hypot(p[0] - q[0], p[1] - q[1], p[2] - q[2]), 15.0) << e.name;
+      }
+    }
+  }
   // The heart and the pulmonary artery touch: springs, each between existing vertices.
   EXPECT_GT(set.connections.size(), 10u);
   for (const auto& c : set.connections) {

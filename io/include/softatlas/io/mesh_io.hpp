@@ -36,6 +36,11 @@ TriMesh read_mesh(const std::string& path, const ReadMeshOptions& options = {});
 // fixed vertices) and assimp's loaders may reorder vertices.
 TriMesh read_ply(const std::string& path);
 
+// The `count` vertices furthest along `dir`, spread out: a vertex is taken only if it is at
+// least `spacing_mm` from those already taken. Sorted by index. (Anchors: the posterior-most
+// vertices of an organ rest on the body wall.)
+std::vector<int32_t> extreme_vertices(const TriMesh& m, const std::array<double, 3>& dir, int count, double spacing_mm);
+
 // Checks the invariants read_mesh guarantees (finite coordinates, indices in range, triangles,
 // at least one face); `where` names the source in the error.
 void validate_mesh(const TriMesh& mesh, const std::string& where);
