@@ -23,6 +23,7 @@
 #include "softatlas/pipeline/label_table.hpp"
 #include "softatlas/pipeline/segment.hpp"
 #include "softatlas/sim/error.hpp"
+#include "grid.hpp"
 #include "tube.hpp"
 
 namespace softatlas::pipeline {
@@ -80,8 +81,7 @@ void erode(Mask& m, const std::array<int, 3>& d) {
 void fill_holes(Mask& m, const std::array<int, 3>& d) {
   Mask outside(m.size(), 0);
   std::vector<size_t> stack;
-  auto push = [&](int i, int j, int k) {
-    const size_t id = i + static_cast<size_t>(d[0]) * (j + static_cast<size_t>(d[1]) * k);
+  auto push = [&](size_t id) {
     if (!m[id] && !outside[id]) {
       outside[id] = 1;
       stack.push_back(id);
@@ -90,18 +90,12 @@ void fill_holes(Mask& m, const std::array<int, 3>& d) {
   for (int k = 0; k < d[2]; ++k)
     for (int j = 0; j < d[1]; ++j)
       for (int i = 0; i < d[0]; ++i)
-        if (i == 0 || j == 0 || k == 0 || i == d[0] - 1 || j == d[1] - 1 || k == d[2] - 1) push(i, j, k);
+        if (i == 0 || j == 0 || k == 0 || i == d[0] - 1 || j == d[1] - 1 || k == d[2] - 1)
+          push(i + static_cast<size_t>(d[0]) * (j + static_cast<size_t>(d[1]) * k));
   while (!stack.empty()) {
     const size_t id = stack.back();
     stack.pop_back();
-    const int i = static_cast<int>(id % d[0]), j = static_cast<int>((id / d[0]) % d[1]),
-              k = static_cast<int>(id / (static_cast<size_t>(d[0]) * d[1]));
-    if (i > 0) push(i - 1, j, k);
-    if (i + 1 < d[0]) push(i + 1, j, k);
-    if (j > 0) push(i, j - 1, k);
-    if (j + 1 < d[1]) push(i, j + 1, k);
-    if (k > 0) push(i, j, k - 1);
-    if (k + 1 < d[2]) push(i, j, k + 1);
+    for_each_face_neighbour(d, id, [&](size_t q, int) { push(q); });
   }
   for (size_t id = 0; id < m.size(); ++id)
     if (!outside[id]) m[id] = 1;
@@ -116,16 +110,9 @@ void keep_seeded(Mask& m, const std::array<int, 3>& d, const std::vector<size_t>
   while (!stack.empty()) {
     const size_t id = stack.back();
     stack.pop_back();
-    const int i = static_cast<int>(id % d[0]), j = static_cast<int>((id / d[0]) % d[1]),
-              k = static_cast<int>(id / (static_cast<size_t>(d[0]) * d[1]));
-    const long sx = 1, sy = d[0], sz = static_cast<long>(d[0]) * d[1];
-    const bool ok[6] = {i > 0, i + 1 < d[0], j > 0, j + 1 < d[1], k > 0, k + 1 < d[2]};
-    const long off[6] = {-sx, sx, -sy, sy, -sz, sz};
-    for (int n = 0; n < 6; ++n) {
-      if (!ok[n]) continue;
-      const size_t q = static_cast<size_t>(static_cast<long>(id) + off[n]);
+    for_each_face_neighbour(d, id, [&](size_t q, int) {
       if (m[q] && !keep[q]) keep[q] = 1, stack.push_back(q);
-    }
+    });
   }
   m.swap(keep);
 }
@@ -216,10 +203,14 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     }
     return ids;
   };
-  // Mean and standard deviation of the 5x5x5 neighbourhoods of the seeds together.
-  auto seed_stats = [&](const std::vector<size_t>& ids) {
+  for (const auto& [name, pts] : seeds.organs) {
+    Region r{label_id(name), 0, 0, true, 0, 0, seed_voxels(pts, name)};
+    // Intensity model from the 5x5x5 neighbourhoods of all seeds together: mean and standard
+    // deviation of every sampled voxel. Measured alternatives are in docs/pipeline.md (median/MAD,
+    // trimmed, per-seed windows, the pooled within-neighbourhood sigma). The window reaches
+    // further up than down: undiluted contrast at a caval inflow (800-900 HU) is blood too.
     double s1 = 0, s2 = 0, cnt = 0;
-    for (size_t id : ids) {
+    for (size_t id : r.seeds) {
       const int i = static_cast<int>(id % d[0]), j = static_cast<int>((id / d[0]) % d[1]),
                 k = static_cast<int>(id / (static_cast<size_t>(d[0]) * d[1]));
       for (int c = -2; c <= 2; ++c)
@@ -231,20 +222,10 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
             s1 += v, s2 += v * v, cnt += 1;
           }
     }
-    const double mu = s1 / cnt;
-    return std::pair<double, double>{mu, std::sqrt(std::max(s2 / cnt - mu * mu, 0.0))};
-  };
-  for (const auto& [name, pts] : seeds.organs) {
-    Region r{label_id(name), 0, 0, true, 0, 0, seed_voxels(pts, name)};
-    // Intensity model from the 5x5x5 neighbourhoods of all seeds together: mean and standard
-    // deviation of every sampled voxel. Measured alternatives are in docs/pipeline.md (median/MAD,
-    // trimmed, per-seed windows, the pooled within-neighbourhood sigma). The window reaches
-    // further up than down: undiluted contrast at a caval inflow (800-900 HU) is blood too.
-    const auto [mu, sd] = seed_stats(r.seeds);
-    r.mu = mu;
+    r.mu = s1 / cnt;
     // Floor: CT noise; ceiling: a spread wider than soft tissue's contrast would admit fat and
     // muscle next to a vessel whose contrast fades along its length.
-    r.sigma = std::clamp(sd, 20.0, o.intensity_sigma_max_hu);
+    r.sigma = std::clamp(std::sqrt(std::max(s2 / cnt - r.mu * r.mu, 0.0)), 20.0, o.intensity_sigma_max_hu);
     r.lo = r.mu - o.intensity_sigma_scale * r.sigma;
     r.hi = r.mu + o.intensity_sigma_scale_high * r.sigma;
     std::fprintf(stderr, "[softatlas segment] %s: %zu seeds, mean %.0f, sigma %.0f, window [%.0f, %.0f]\n",
@@ -279,9 +260,6 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
       cost[s] = Cost{0, 0.0f};
       heap.push({cost[s], {s, static_cast<int>(r)}});
     }
-  const long sx = 1, sy = d[0], sz = static_cast<long>(d[0]) * d[1];
-  const long off[6] = {-sx, sx, -sy, sy, -sz, sz};
-  const double step_mm[6] = {sp[0], sp[0], sp[1], sp[1], sp[2], sp[2]};
   while (!heap.empty()) {
     const auto [c, item] = heap.top();
     heap.pop();
@@ -289,33 +267,22 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     if (owner[id] >= 0 || cost[id] < c) continue;
     owner[id] = static_cast<int16_t>(r);
     const Region& R = regions[r];
-    const int i = static_cast<int>(id % d[0]), j = static_cast<int>((id / d[0]) % d[1]),
-              k = static_cast<int>(id / (static_cast<size_t>(d[0]) * d[1]));
-    const bool ok[6] = {i > 0, i + 1 < d[0], j > 0, j + 1 < d[1], k > 0, k + 1 < d[2]};
     const double vi = smooth[id];
-    for (int nb = 0; nb < 6; ++nb) {
-      if (!ok[nb]) continue;
-      const size_t q = static_cast<size_t>(static_cast<long>(id) + off[nb]);
-      if (owner[q] >= 0) continue;
+    for_each_face_neighbour(d, id, [&, c = c, r = r](size_t q, int axis) {
+      if (owner[q] >= 0) return;
       const double vq = smooth[q];
-      if (R.window && (vq < R.lo || vq > R.hi)) continue;
+      if (R.window && (vq < R.lo || vq > R.hi)) return;
       const Cost nc{std::max(c.barrier, static_cast<int>(std::abs(vq - vi) / o.edge_bin_hu)),
-                    c.length + static_cast<float>(step_mm[nb])};
+                    c.length + static_cast<float>(sp[axis])};
       if (nc < cost[q]) {
         cost[q] = nc;
         heap.push({nc, {q, r}});
       }
-    }
+    });
   }
-  const bool any_tube = std::any_of(regions.begin(), regions.end(), [&](const Region& R) {
-    return R.id != 0 && std::any_of(o.tubes.begin(), o.tubes.end(), [&](const std::string& t) { return label_id(t) == R.id; });
-  });
-  bool any_wall = false;
-  for (const auto& R : regions)
-    for (const auto& [name, wall] : o.walls) any_wall |= R.id != 0 && label_id(name) == R.id;
 
   // Tubes (large vessels).
-  for (size_t r = 0; any_tube && r < regions.size(); ++r) {
+  for (size_t r = 0; r < regions.size(); ++r) {
     if (regions[r].id == 0 ||
         std::none_of(o.tubes.begin(), o.tubes.end(), [&](const std::string& t) { return label_id(t) == regions[r].id; }))
       continue;
@@ -354,15 +321,15 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
   // intensity is at least the wall's min_hu and that lie below the organ's window (brighter
   // voxels are another structure's blood). Background seeds propagate through the same tissue,
   // so a background click in the wall stops it halfway.
-  if (any_wall) {
-    std::vector<double> wall_min(regions.size(), 0), wall_mm(regions.size(), 0), wall_hi(regions.size(), 0);
-    double lowest = std::numeric_limits<double>::infinity(), widest = 0;
-    for (size_t r = 0; r < regions.size(); ++r)
-      for (const auto& [name, wall] : o.walls)
-        if (regions[r].id != 0 && label_id(name) == regions[r].id) {
-          wall_min[r] = wall.min_hu, wall_mm[r] = wall.thickness_mm, wall_hi[r] = regions[r].lo;
-          lowest = std::min(lowest, wall_min[r]), widest = std::max(widest, wall_mm[r]);
-        }
+  std::vector<double> wall_min(regions.size(), 0), wall_mm(regions.size(), 0), wall_hi(regions.size(), 0);
+  double lowest = std::numeric_limits<double>::infinity(), widest = 0;
+  for (size_t r = 0; r < regions.size(); ++r)
+    for (const auto& [name, wall] : o.walls)
+      if (regions[r].id != 0 && label_id(name) == regions[r].id) {
+        wall_min[r] = wall.min_hu, wall_mm[r] = wall.thickness_mm, wall_hi[r] = regions[r].lo;
+        lowest = std::min(lowest, wall_min[r]), widest = std::max(widest, wall_mm[r]);
+      }
+  if (widest > 0) {  // some seeded organ has a wall
     for (size_t r = 0; r < regions.size(); ++r)
       if (regions[r].id == 0) wall_min[r] = lowest, wall_mm[r] = widest, wall_hi[r] = std::numeric_limits<double>::infinity();
     auto is_organ = [&](size_t id) { return owner[id] >= 0 && regions[owner[id]].id != 0; };
@@ -381,19 +348,14 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
       const auto [id, r] = item;
       if (front[id] >= 0 || c > dist[id]) continue;
       front[id] = static_cast<int16_t>(r);
-      const int i = static_cast<int>(id % d[0]), j = static_cast<int>((id / d[0]) % d[1]),
-                k = static_cast<int>(id / (static_cast<size_t>(d[0]) * d[1]));
-      const bool ok[6] = {i > 0, i + 1 < d[0], j > 0, j + 1 < d[1], k > 0, k + 1 < d[2]};
-      for (int nb = 0; nb < 6; ++nb) {
-        if (!ok[nb]) continue;
-        const size_t q = static_cast<size_t>(static_cast<long>(id) + off[nb]);
-        if (front[q] >= 0 || is_organ(q)) continue;
-        if (smooth[q] < wall_min[r] || ct.values[q] >= wall_hi[r]) continue;
-        const float nd = static_cast<float>(c + step_mm[nb]);
-        if (nd > wall_mm[r] || nd >= dist[q]) continue;
+      for_each_face_neighbour(d, id, [&, c = c, r = r](size_t q, int axis) {
+        if (front[q] >= 0 || is_organ(q)) return;
+        if (smooth[q] < wall_min[r] || ct.values[q] >= wall_hi[r]) return;
+        const float nd = static_cast<float>(c + sp[axis]);
+        if (nd > wall_mm[r] || nd >= dist[q]) return;
         dist[q] = nd;
         walls.push({nd, {q, r}});
-      }
+      });
     }
     size_t grown = 0;
     for (size_t id = 0; id < n; ++id)

@@ -8,6 +8,8 @@
 #include <limits>
 #include <queue>
 
+#include "grid.hpp"
+
 namespace softatlas::pipeline {
 namespace {
 
@@ -91,35 +93,28 @@ Paths geodesic(const Grid& g, const std::vector<int>& depth, const std::vector<f
   std::priority_queue<Item, std::vector<Item>, std::greater<Item>> heap;
   p.dist[source] = 0;
   heap.push({0.0f, source});
-  const long off[6] = {-1, 1, -static_cast<long>(g.d[0]), static_cast<long>(g.d[0]),
-                       -static_cast<long>(g.d[0]) * g.d[1], static_cast<long>(g.d[0]) * g.d[1]};
-  const double step[6] = {g.sp[0], g.sp[0], g.sp[1], g.sp[1], g.sp[2], g.sp[2]};
   while (!heap.empty()) {
     const auto [c, id] = heap.top();
     heap.pop();
     if (c > p.dist[id]) continue;
-    const auto v = g.ijk(id);
-    const bool ok[6] = {v[0] > 0, v[0] + 1 < g.d[0], v[1] > 0, v[1] + 1 < g.d[1], v[2] > 0, v[2] + 1 < g.d[2]};
-    for (int nb = 0; nb < 6; ++nb) {
-      if (!ok[nb]) continue;
-      const size_t q = static_cast<size_t>(static_cast<long>(id) + off[nb]);
+    for_each_face_neighbour(g.d, id, [&, c = c, id = id](size_t q, int axis) {
       double w;
       if (depth[q] > 0) {
         const double r = 4.0 / depth[q];
-        w = step[nb] * (1.0 + r * r);
+        w = g.sp[axis] * (1.0 + r * r);
       } else if (!other_organ[q] && smooth[q] >= stop_hu) {
-        w = step[nb] * 40.0;
+        w = g.sp[axis] * 40.0;
       } else {
-        continue;
+        return;
       }
       const float nc = static_cast<float>(c + w);
       if (nc < p.dist[q]) {
         p.dist[q] = nc;
-        p.length[q] = p.length[id] + static_cast<float>(step[nb]);
+        p.length[q] = p.length[id] + static_cast<float>(g.sp[axis]);
         p.pred[q] = static_cast<int64_t>(id);
         heap.push({nc, q});
       }
-    }
+    });
   }
   return p;
 }
@@ -127,11 +122,12 @@ Paths geodesic(const Grid& g, const std::vector<int>& depth, const std::vector<f
 struct Section {
   Vec3 c;
   double r = 0;
-  double inliers = 0;  // share of rays within 30 % of the median
+  double inliers = 0;  // share of rays whose end lies within 20 % of the fitted circle
 };
 
-// Fits a circle in the plane through c normal to t: rays stop at fat/air, at another organ or at
-// the grid's edge; median length = radius, mean end point of the rays near it = centre.
+// Fits a circle in the plane through c0 normal to t: rays stop at fat/air, at bright voxels not
+// `ours`, at another organ or at the grid's edge; a robust circle fit to their ends gives the
+// radius and the new centre, from which the rays are cast again (three rounds).
 Section fit_section(const Grid& g, const std::vector<float>& smooth, const std::vector<char>& other_organ,
                     const std::vector<char>& ours, const Vec3& c0, const Vec3& t, const TubeOptions& o) {
   Vec3 c = c0;
@@ -139,11 +135,12 @@ Section fit_section(const Grid& g, const std::vector<float>& smooth, const std::
   const Vec3 u = unit(cross(t, a)), v = cross(t, u);
   const double ds = 0.25 * std::min({g.sp[0], g.sp[1], g.sp[2]});
   Section s{c, 0, 0};
-  std::vector<double> len(o.rays);
+  std::vector<double> len(o.rays), cs(o.rays), sn(o.rays);
   std::vector<Vec3> dir(o.rays);
   for (int k = 0; k < o.rays; ++k) {
     const double th = 2 * M_PI * k / o.rays;
-    dir[k] = std::cos(th) * u + std::sin(th) * v;
+    cs[k] = std::cos(th), sn[k] = std::sin(th);
+    dir[k] = cs[k] * u + sn[k] * v;
   }
   for (int round = 0; round < 3; ++round) {
     if (!g.inside(c) || smooth[g.nearest(c)] < o.stop_hu) return Section{c, 0, 0};
@@ -175,7 +172,7 @@ Section fit_section(const Grid& g, const std::vector<float>& smooth, const std::
       in = 0;
       for (int k = 0; k < o.rays; ++k) {
         if (!use[k]) continue;
-        const double th = 2 * M_PI * k / o.rays, x = len[k] * std::cos(th), y = len[k] * std::sin(th);
+        const double x = len[k] * cs[k], y = len[k] * sn[k];
         const double row[3] = {x, y, 1}, rhs = -(x * x + y * y);
         for (int i = 0; i < 3; ++i) {
           for (int j = 0; j < 3; ++j) m[i][j] += row[i] * row[j];
@@ -203,7 +200,7 @@ Section fit_section(const Grid& g, const std::vector<float>& smooth, const std::
       if (rr <= 0) return Section{c, 0, 0};
       r = std::sqrt(rr);
       for (int k = 0; k < o.rays; ++k) {
-        const double th = 2 * M_PI * k / o.rays, x = len[k] * std::cos(th), y = len[k] * std::sin(th);
+        const double x = len[k] * cs[k], y = len[k] * sn[k];
         use[k] = std::abs(std::hypot(x - cx, y - cy) - r) <= std::max(0.2 * r, 1.5) && len[k] < o.max_radius_mm;
       }
     }
@@ -228,43 +225,30 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
   const Grid g{dims, {spacing[0], spacing[1], spacing[2]}};
   const size_t n = owner.size();
   if (seeds.size() < 2) return {};
-  // Depth (6-neighbour steps) of every voxel of the region.
+  // Depth (6-neighbour steps) of every voxel of the region, for medial paths.
+  // The region and a one-voxel rim (partial volume), `ours`: bright voxels outside it are another
+  // structure (bone, another vessel), where a ray stops.
   std::vector<int> depth(n, 0);
+  std::vector<char> ours(n, 0);
   std::vector<size_t> queue;
-  const long off[6] = {-1, 1, -static_cast<long>(dims[0]), static_cast<long>(dims[0]),
-                       -static_cast<long>(dims[0]) * dims[1], static_cast<long>(dims[0]) * dims[1]};
   for (size_t id = 0; id < n; ++id) {
     if (owner[id] != self) continue;
-    const auto v = g.ijk(id);
-    const bool ok[6] = {v[0] > 0, v[0] + 1 < dims[0], v[1] > 0, v[1] + 1 < dims[1], v[2] > 0, v[2] + 1 < dims[2]};
+    ours[id] = 1;
     bool edge = false;
-    for (int nb = 0; nb < 6 && !edge; ++nb) edge = ok[nb] && owner[static_cast<size_t>(static_cast<long>(id) + off[nb])] != self;
+    for_each_face_neighbour(dims, id, [&](size_t q, int) {
+      ours[q] = 1;
+      edge = edge || owner[q] != self;
+    });
     if (edge) depth[id] = 1, queue.push_back(id);
   }
   for (size_t h = 0; h < queue.size(); ++h) {
     const size_t id = queue[h];
-    const auto v = g.ijk(id);
-    const bool ok[6] = {v[0] > 0, v[0] + 1 < dims[0], v[1] > 0, v[1] + 1 < dims[1], v[2] > 0, v[2] + 1 < dims[2]};
-    for (int nb = 0; nb < 6; ++nb) {
-      if (!ok[nb]) continue;
-      const size_t q = static_cast<size_t>(static_cast<long>(id) + off[nb]);
+    for_each_face_neighbour(dims, id, [&](size_t q, int) {
       if (owner[q] == self && depth[q] == 0) depth[q] = depth[id] + 1, queue.push_back(q);
-    }
+    });
   }
   for (size_t id = 0; id < n; ++id)
     if (owner[id] == self && depth[id] == 0) depth[id] = 1;  // region voxels on the grid's edge only
-
-  // The region and a one-voxel rim (partial volume): bright voxels outside it are another
-  // structure (bone, another vessel), where a ray stops.
-  std::vector<char> ours(n, 0);
-  for (size_t id = 0; id < n; ++id) {
-    if (owner[id] != self) continue;
-    ours[id] = 1;
-    const auto v = g.ijk(id);
-    const bool ok[6] = {v[0] > 0, v[0] + 1 < dims[0], v[1] > 0, v[1] + 1 < dims[1], v[2] > 0, v[2] + 1 < dims[2]};
-    for (int nb = 0; nb < 6; ++nb)
-      if (ok[nb]) ours[static_cast<size_t>(static_cast<long>(id) + off[nb])] = 1;
-  }
 
   // The ends of the centreline: the two seeds farthest apart along the cheapest path between
   // them (its length, not its cost, which a seed in unenhanced blood inflates), found by a double
@@ -282,7 +266,7 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
   std::vector<Vec3> path;
   for (int64_t id = static_cast<int64_t>(b); id >= 0; id = pa.pred[static_cast<size_t>(id)]) path.push_back(g.mm(id));
 
-  // Resample every step_mm of arc length, then smooth (moving average over +-2 samples).
+  // Resample every step_mm of arc length.
   std::vector<Vec3> pts{path.front()};
   double carry = 0;
   for (size_t i = 1; i < path.size(); ++i) {
@@ -360,7 +344,8 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
       sec.push_back(s);
     }
   }
-  // Drop sections that failed (centre in fat), then smooth radii (median of 5) and centres.
+  // Drop sections that failed (centre in fat), then smooth radii (median of 9, less the wall) and
+  // centres.
   std::vector<Section> good;
   for (const auto& s : sec)
     if (s.r > 0) good.push_back(s);
