@@ -6,11 +6,14 @@
 //    connectedness (Udupa & Saha 2003); the ordered-propagation form of grow-cut (Vezhnevets &
 //    Konouchine 2005). A voxel may join organ l only inside its window
 //    [mu_l - 2.5 sigma_l, mu_l + 4 sigma_l], mu_l and sigma_l from the seed neighbourhoods.
-//    Background seeds compete with no window.
+//    Background seeds compete with no window; over equal barriers their paths count twice their
+//    length (background_length_weight).
 // 2. Vessels listed in SegmentOptions::tubes (the aorta) are replaced by a tube fitted to their
-//    region (tube.hpp): unenhanced stretches filled, bone and branches cut.
+//    region (tube.hpp): unenhanced stretches filled, bone, branches and touching soft tissue cut;
+//    the region is kept in a wall-wide band along the tube's sides.
 // 3. Organs listed in SegmentOptions::walls (the heart) grow a wall from their region into
-//    enhanced soft tissue (the myocardium), competing with the background seeds.
+//    enhanced soft tissue (the myocardium), competing with the background seeds; a tube's own
+//    wall is not theirs.
 // 4. Per organ: closing, hole filling, opening; only the components that hold a seed are kept.
 // Measurements of each step and of the alternatives tried: docs/pipeline.md.
 #include <yaml-cpp/yaml.h>
@@ -273,7 +276,7 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
       const double vq = smooth[q];
       if (R.window && (vq < R.lo || vq > R.hi)) return;
       const Cost nc{std::max(c.barrier, static_cast<int>(std::abs(vq - vi) / o.edge_bin_hu)),
-                    c.length + static_cast<float>(sp[axis])};
+                    c.length + static_cast<float>(sp[axis] * (R.id == 0 ? o.background_length_weight : 1.0))};
       if (nc < cost[q]) {
         cost[q] = nc;
         heap.push({nc, {q, r}});
@@ -282,6 +285,7 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
   }
 
   // Tubes (large vessels).
+  std::vector<char> vessel_wall(n, 0);
   for (size_t r = 0; r < regions.size(); ++r) {
     if (regions[r].id == 0 ||
         std::none_of(o.tubes.begin(), o.tubes.end(), [&](const std::string& t) { return label_id(t) == regions[r].id; }))
@@ -294,6 +298,7 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     TubeOptions to;
     to.stop_hu = o.tube_stop_hu;
     to.bright_hu = regions[r].lo + 0.5 * regions[r].sigma;
+    to.lumen_min_hu = o.tube_lumen_min_hu;
     TubeReport rep;
     const std::vector<char> tube = vessel_tube(d, sp, smooth, owner, static_cast<int>(r), other, regions[r].seeds, to, &rep);
     if (tube.empty()) {
@@ -301,12 +306,28 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
                    label_name(regions[r].id).c_str());
       continue;
     }
+    // The vessel's own wall (wall_mm outside the tube, which is the lumen) is nobody's: another
+    // organ's wall growth (the heart's myocardium at the aortic root) must not take it.
+    std::vector<char> shell(n);
+    for (size_t id = 0; id < n; ++id) shell[id] = tube[id] == kTubeInside;
+    const int layers = std::max(1, static_cast<int>(std::lround(to.wall_mm / std::min({sp[0], sp[1], sp[2]}))));
+    for (int it = 0; it < layers; ++it) {
+      std::vector<char> next = shell;
+      for (size_t id = 0; id < n; ++id)
+        if (shell[id]) for_each_face_neighbour(d, id, [&](size_t q, int) { next[q] = 1; });
+      shell.swap(next);
+    }
+    for (size_t id = 0; id < n; ++id)
+      if (shell[id] && tube[id] != kTubeInside) vessel_wall[id] = 1;
+    // The grown region is kept inside the tube and in the band along its sides: a lumen is not
+    // exactly round (the arch, a bulge at a branch), and the region there is the image's own
+    // outline of it. Outside the band (branches, bone, the rest of a leak) it is dropped.
     size_t kept = 0, added = 0, dropped = 0;
     for (size_t id = 0; id < n; ++id) {
       if (owner[id] == static_cast<int16_t>(r)) {
-        if (tube[id]) ++kept;
+        if (tube[id] != 0) ++kept, vessel_wall[id] = 0;
         else owner[id] = -1, ++dropped;
-      } else if (tube[id]) {
+      } else if (tube[id] == kTubeInside) {
         owner[id] = static_cast<int16_t>(r), ++added;
       }
     }
@@ -349,7 +370,7 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
       if (front[id] >= 0 || c > dist[id]) continue;
       front[id] = static_cast<int16_t>(r);
       for_each_face_neighbour(d, id, [&, c = c, r = r](size_t q, int axis) {
-        if (front[q] >= 0 || is_organ(q)) return;
+        if (front[q] >= 0 || is_organ(q) || vessel_wall[q]) return;
         if (smooth[q] < wall_min[r] || ct.values[q] >= wall_hi[r]) return;
         const float nd = static_cast<float>(c + sp[axis]);
         if (nd > wall_mm[r] || nd >= dist[q]) return;

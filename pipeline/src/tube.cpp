@@ -125,96 +125,152 @@ struct Section {
   double inliers = 0;  // share of rays whose end lies within 20 % of the fitted circle
 };
 
+struct Circle {
+  double cx = 0, cy = 0, r = 0;
+  double inliers = 0;  // share of all rays
+  bool ok = false;
+};
+
+// Robust circle fit to ray ends len[k] * (cs[k], sn[k]) in a section's plane. Rays that leak into
+// bone, muscle or a branch end too far out: start from the shorter 60 % of the rays, then keep the
+// ends within 20 % of the circle (four rounds of a Kasa fit).
+Circle fit_circle(const std::vector<double>& len, const std::vector<double>& cs, const std::vector<double>& sn,
+                  double max_len) {
+  const int rays = static_cast<int>(len.size());
+  std::vector<double> sorted = len;
+  const int q = static_cast<int>(0.6 * (rays - 1));
+  std::nth_element(sorted.begin(), sorted.begin() + q, sorted.end());
+  std::vector<char> use(rays);
+  for (int k = 0; k < rays; ++k) use[k] = len[k] <= sorted[q] && len[k] < max_len;
+  Circle c;
+  for (int it = 0; it < 4; ++it) {
+    // Kasa fit: x^2 + y^2 + D x + E y + F = 0, normal equations solved with partial pivoting.
+    double m[3][4] = {};
+    int in = 0;
+    for (int k = 0; k < rays; ++k) {
+      if (!use[k]) continue;
+      const double x = len[k] * cs[k], y = len[k] * sn[k];
+      const double row[3] = {x, y, 1}, rhs = -(x * x + y * y);
+      for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) m[i][j] += row[i] * row[j];
+        m[i][3] += row[i] * rhs;
+      }
+      ++in;
+    }
+    if (in < 5) return Circle{};
+    for (int col = 0; col < 3; ++col) {
+      int piv = col;
+      for (int i = col + 1; i < 3; ++i)
+        if (std::abs(m[i][col]) > std::abs(m[piv][col])) piv = i;
+      std::swap(m[col], m[piv]);
+      if (std::abs(m[col][col]) < 1e-12) return Circle{};
+      for (int i = 0; i < 3; ++i) {
+        if (i == col) continue;
+        const double f = m[i][col] / m[col][col];
+        for (int j = col; j < 4; ++j) m[i][j] -= f * m[col][j];
+      }
+    }
+    const double D = m[0][3] / m[0][0], E = m[1][3] / m[1][1], F = m[2][3] / m[2][2];
+    c.cx = -D / 2, c.cy = -E / 2;
+    const double rr = c.cx * c.cx + c.cy * c.cy - F;
+    if (rr <= 0) return Circle{};
+    c.r = std::sqrt(rr);
+    for (int k = 0; k < rays; ++k) {
+      const double x = len[k] * cs[k], y = len[k] * sn[k];
+      use[k] = std::abs(std::hypot(x - c.cx, y - c.cy) - c.r) <= std::max(0.2 * c.r, 1.5) && len[k] < max_len;
+    }
+  }
+  int in = 0;
+  for (char u : use) in += u;
+  c.inliers = static_cast<double>(in) / rays;
+  // The point the rays started from must lie inside the fitted circle.
+  c.ok = std::hypot(c.cx, c.cy) <= c.r;
+  return c;
+}
+
+// The rays of one section: directions in the plane normal to t.
+struct Rays {
+  Vec3 u, v;
+  std::vector<double> cs, sn;
+  std::vector<Vec3> dir;
+  Rays(const Vec3& t, int n) : cs(n), sn(n), dir(n) {
+    const Vec3 a = std::abs(t[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+    u = unit(cross(t, a)), v = cross(t, u);
+    for (int k = 0; k < n; ++k) {
+      const double th = 2 * M_PI * k / n;
+      cs[k] = std::cos(th), sn[k] = std::sin(th);
+      dir[k] = cs[k] * u + sn[k] * v;
+    }
+  }
+};
+
+enum class Stop { go_on, here, after_wall };
+
+// Ray lengths from c: each ray walks in steps of a quarter voxel until `stop(id, value, peak)`
+// says so (at once, or after wall_mm more unless it stops at once before), or the grid's edge, or
+// max_len. `peak` is the ray's own state (starts at -inf).
+template <class F>
+std::vector<double> cast(const Grid& g, const std::vector<float>& smooth, const Rays& rays, const Vec3& c,
+                         double max_len, double wall_mm, F stop) {
+  const double ds = 0.25 * std::min({g.sp[0], g.sp[1], g.sp[2]});
+  std::vector<double> len(rays.dir.size());
+  for (size_t k = 0; k < rays.dir.size(); ++k) {
+    double l = 0, peak = -std::numeric_limits<double>::infinity(), end = max_len;
+    while (l < end) {
+      const Vec3 p = c + (l + ds) * rays.dir[k];
+      if (!g.inside(p)) break;
+      const Stop s = stop(g.nearest(p), g.sample(smooth, p), peak);
+      if (s == Stop::here) break;
+      if (s == Stop::after_wall && end == max_len) end = std::min(max_len, l + wall_mm);
+      l += ds;
+    }
+    len[k] = std::min(l, end);
+  }
+  return len;
+}
+
 // Fits a circle in the plane through c0 normal to t: rays stop at fat/air, at bright voxels not
 // `ours`, at another organ or at the grid's edge; a robust circle fit to their ends gives the
 // radius and the new centre, from which the rays are cast again (three rounds).
-Section fit_section(const Grid& g, const std::vector<float>& smooth, const std::vector<char>& other_organ,
-                    const std::vector<char>& ours, const Vec3& c0, const Vec3& t, const TubeOptions& o) {
+Section fat_section(const Grid& g, const std::vector<float>& smooth, const std::vector<char>& other_organ,
+                    const std::vector<char>& ours, const Vec3& c0, const Rays& rays, const TubeOptions& o) {
   Vec3 c = c0;
-  const Vec3 a = std::abs(t[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
-  const Vec3 u = unit(cross(t, a)), v = cross(t, u);
-  const double ds = 0.25 * std::min({g.sp[0], g.sp[1], g.sp[2]});
   Section s{c, 0, 0};
-  std::vector<double> len(o.rays), cs(o.rays), sn(o.rays);
-  std::vector<Vec3> dir(o.rays);
-  for (int k = 0; k < o.rays; ++k) {
-    const double th = 2 * M_PI * k / o.rays;
-    cs[k] = std::cos(th), sn[k] = std::sin(th);
-    dir[k] = cs[k] * u + sn[k] * v;
-  }
   for (int round = 0; round < 3; ++round) {
     if (!g.inside(c) || smooth[g.nearest(c)] < o.stop_hu) return Section{c, 0, 0};
-    for (int k = 0; k < o.rays; ++k) {
-      double l = 0;
-      while (l < o.max_radius_mm) {
-        const Vec3 p = c + (l + ds) * dir[k];
-        if (!g.inside(p)) break;
-        const size_t id = g.nearest(p);
-        const double v = g.sample(smooth, p);
-        if (other_organ[id] || v < o.stop_hu || (v > o.bright_hu && !ours[id])) break;
-        l += ds;
-      }
-      len[k] = l;
-    }
-    // The ray ends are points of the vessel's outline (from any point inside a convex section),
-    // except for rays that leak into bone, muscle or a branch and end too far out. Robust circle
-    // fit: start from the shorter 60 % of the rays, then keep the ends within 20 % of the circle.
-    std::vector<double> sorted = len;
-    const int q = static_cast<int>(0.6 * (o.rays - 1));
-    std::nth_element(sorted.begin(), sorted.begin() + q, sorted.end());
-    std::vector<char> use(o.rays);
-    for (int k = 0; k < o.rays; ++k) use[k] = len[k] <= sorted[q] && len[k] < o.max_radius_mm;
-    double cx = 0, cy = 0, r = 0;
-    int in = 0;
-    for (int it = 0; it < 4; ++it) {
-      // Kasa fit: x^2 + y^2 + D x + E y + F = 0 in the section's (u, v) coordinates.
-      double m[3][4] = {};
-      in = 0;
-      for (int k = 0; k < o.rays; ++k) {
-        if (!use[k]) continue;
-        const double x = len[k] * cs[k], y = len[k] * sn[k];
-        const double row[3] = {x, y, 1}, rhs = -(x * x + y * y);
-        for (int i = 0; i < 3; ++i) {
-          for (int j = 0; j < 3; ++j) m[i][j] += row[i] * row[j];
-          m[i][3] += row[i] * rhs;
-        }
-        ++in;
-      }
-      if (in < 5) return Section{c, 0, 0};
-      // Gaussian elimination with partial pivoting on the 3x3 normal equations.
-      for (int col = 0; col < 3; ++col) {
-        int piv = col;
-        for (int i = col + 1; i < 3; ++i)
-          if (std::abs(m[i][col]) > std::abs(m[piv][col])) piv = i;
-        std::swap(m[col], m[piv]);
-        if (std::abs(m[col][col]) < 1e-12) return Section{c, 0, 0};
-        for (int i = 0; i < 3; ++i) {
-          if (i == col) continue;
-          const double f = m[i][col] / m[col][col];
-          for (int j = col; j < 4; ++j) m[i][j] -= f * m[col][j];
-        }
-      }
-      const double D = m[0][3] / m[0][0], E = m[1][3] / m[1][1], F = m[2][3] / m[2][2];
-      cx = -D / 2, cy = -E / 2;
-      const double rr = cx * cx + cy * cy - F;
-      if (rr <= 0) return Section{c, 0, 0};
-      r = std::sqrt(rr);
-      for (int k = 0; k < o.rays; ++k) {
-        const double x = len[k] * cs[k], y = len[k] * sn[k];
-        use[k] = std::abs(std::hypot(x - cx, y - cy) - r) <= std::max(0.2 * r, 1.5) && len[k] < o.max_radius_mm;
-      }
-    }
-    in = 0;
-    for (char u_ : use) in += u_;
-    // The point the rays started from must lie inside the fitted circle.
-    if (std::hypot(cx, cy) > r) return Section{c, 0, 0};
-    s = Section{c, r, static_cast<double>(in) / o.rays};
-    const Vec3 next = c + cx * u + cy * v;
-    if (norm(next - c0) > 1.5 * r) break;
+    const auto len = cast(g, smooth, rays, c, o.max_radius_mm, o.wall_mm, [&](size_t id, double v, double&) {
+      return other_organ[id] || v < o.stop_hu || (v > o.bright_hu && !ours[id]) ? Stop::here : Stop::go_on;
+    });
+    const Circle f = fit_circle(len, rays.cs, rays.sn, o.max_radius_mm);
+    if (!f.ok) return Section{c, 0, 0};
+    s = Section{c, f.r, f.inliers};
+    const Vec3 next = c + f.cx * rays.u + f.cy * rays.v;
+    if (norm(next - c0) > 1.5 * f.r) break;
     c = next;
     s.c = c;
   }
   return s;
+}
+
+Section fit_section(const Grid& g, const std::vector<float>& smooth, const std::vector<char>& other_organ,
+                    const std::vector<char>& ours, const Vec3& c0, const Vec3& t, const TubeOptions& o) {
+  const Rays rays(t, o.rays);
+  const Section fat = fat_section(g, smooth, other_organ, ours, c0, rays, o);
+  if (fat.r <= 0 || o.lumen_min_hu <= 0) return fat;
+  // From the fat circle's centre, rays that cross contrast-filled lumen end wall_mm past its
+  // edge: where soft tissue rather than fat lies beyond the wall (the crura, the root's sinus),
+  // the rays to fat run on through it. In a crescent of contrast beside unenhanced blood, rays
+  // through the crescent end at the wall anyway and the others never see contrast.
+  const auto len = cast(g, smooth, rays, fat.c, o.max_radius_mm, o.wall_mm, [&](size_t id, double v, double& peak) {
+    if (other_organ[id] || v < o.stop_hu || (v > o.bright_hu && !ours[id])) return Stop::here;
+    peak = std::max(peak, v);
+    return peak >= o.lumen_min_hu && v < std::min(o.lumen_edge_hu, o.tissue_hu + o.edge_fraction * (peak - o.tissue_hu))
+               ? Stop::after_wall
+               : Stop::go_on;
+  });
+  const Circle f = fit_circle(len, rays.cs, rays.sn, o.max_radius_mm);
+  if (!f.ok) return fat;
+  return Section{fat.c + f.cx * rays.u + f.cy * rays.v, f.r, f.inliers};
 }
 
 }  // namespace
@@ -297,6 +353,10 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
   // The voxel path wanders inside a thin crescent of contrast; tangents come from a path smoothed
   // over +-5 samples, and the fit is repeated from the smoothed fitted centres.
   smooth_points(pts, 5);
+  // The last samples at each end see a one-sided window, and the path there wanders to a seed
+  // that may lie anywhere in the lumen: their tangents can lie across the vessel. They are
+  // dropped; the end extension below walks the vessel on from the clean part.
+  if (pts.size() >= 8 * static_cast<size_t>(o.end_trim)) pts = std::vector<Vec3>(pts.begin() + o.end_trim, pts.end() - o.end_trim);
   if (pts.size() < 3) return {};
   auto tangent = [](const std::vector<Vec3>& p, size_t i) {
     const size_t lo = i > 1 ? i - 2 : 0, hi = std::min(i + 2, p.size() - 1);
@@ -322,10 +382,15 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
   };
   for (int end = 0; end < 2; ++end) {
     if (end == 1) std::reverse(sec.begin(), sec.end());
-    // sec.back() is the end being extended.
+    // sec.back() is the end being extended; the vessel may bend, but not turn by more than
+    // max_turn_deg from its direction at the end of the centreline (else the sections walk off
+    // sideways into whatever soft tissue meets the vessel there).
+    const size_t m0 = sec.size();
+    const Vec3 t0 = unit(sec[m0 - 1].c - sec[std::max<size_t>(m0, 4) - 4].c);
     for (int step = 0; step < 200; ++step) {
       const size_t m = sec.size();
       const Vec3 t = unit(sec[m - 1].c - sec[std::max<size_t>(m, 4) - 4].c);
+      if (dot(t, t0) < std::cos(o.max_turn_deg * M_PI / 180)) break;
       const double r_ref = median_radius(sec, m > 8 ? m - 8 : 0, m);
       const Vec3 next = sec[m - 1].c + o.step_mm * t;
       if (!g.inside(next)) {
@@ -368,7 +433,7 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
   std::vector<char> tube(n, 0);
   for (size_t s = 0; s + 1 < centre.size(); ++s) {
     const Vec3 c0 = centre[s], c1 = centre[s + 1], e = c1 - c0;
-    const double r0 = rad[s], r1 = rad[s + 1], ee = std::max(dot(e, e), 1e-12), rm = std::max(r0, r1);
+    const double r0 = rad[s], r1 = rad[s + 1], ee = std::max(dot(e, e), 1e-12), rm = std::max(r0, r1) + o.wall_mm;
     int lo[3], hi[3];
     for (int a = 0; a < 3; ++a) {
       lo[a] = std::max(0, static_cast<int>(std::floor((std::min(c0[a], c1[a]) - rm) / g.sp[a])));
@@ -384,7 +449,10 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
           const Vec3 q = c0 + tau * e;
           const double r = r0 + tau * (r1 - r0);
           const size_t id = g.index(i, j, k);
-          if (!other_organ[id] && dot(p - q, p - q) <= r * r) tube[id] = 1;
+          const double q2 = dot(p - q, p - q);
+          if (other_organ[id] || q2 > (r + o.wall_mm) * (r + o.wall_mm)) continue;
+          if (q2 <= r * r) tube[id] = kTubeInside;
+          else if (tube[id] == 0) tube[id] = kTubeWall;
         }
   }
   // Beyond the last sections, the grown region continues the vessel where no round section was
@@ -411,7 +479,7 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
           const double along = dot(p, t);
           if (along <= 0 || along > reach) continue;
           const Vec3 radial = p - along * t;
-          if (dot(radial, radial) <= r * r) tube[id] = 1;
+          if (dot(radial, radial) <= r * r) tube[id] = kTubeInside;
         }
   }
   if (report) {

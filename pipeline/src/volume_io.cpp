@@ -275,6 +275,19 @@ Volume read_nifti(const std::string& path) {
     for (int c = 0; c < 3; ++c) t += (m ? m->GetElement(r, c) : (r == c ? 1.0 : 0.0)) * org[c];
     a[r * 4 + 3] = t;
   }
+  // With qfac = -1 VTK stores the slices in reverse order (to keep its frame right-handed). Undo
+  // that, so that voxel (i, j, k) is the file's voxel (i, j, k): a label map written on this grid
+  // then has the CT's own index order and header, as other tools (nibabel, Slicer) expect.
+  if (reader->GetQFac() < 0 && v.dims[2] > 1) {
+    const size_t slice = static_cast<size_t>(v.dims[0]) * v.dims[1];
+    for (int k = 0; k < v.dims[2] / 2; ++k)
+      std::swap_ranges(v.values.begin() + k * slice, v.values.begin() + (k + 1) * slice,
+                       v.values.begin() + (v.dims[2] - 1 - k) * slice);
+    for (int r = 0; r < 3; ++r) {
+      a[r * 4 + 3] += a[r * 4 + 2] * (v.dims[2] - 1);
+      a[r * 4 + 2] = -a[r * 4 + 2];
+    }
+  }
   v.ijk_to_ras = a;
   v.label_names = read_nifti_label_names(path);
   return v;

@@ -69,6 +69,33 @@ TEST(SeededSegmentation, TubeFillsAVesselWhoseContrastIsACrescent) {
   EXPECT_LT(d_without, 0.75);  // the crescent alone is about a third of the lumen
 }
 
+// A filled aorta (lumen radius 10 mm, 400 HU, 2 mm wall) passing through the crura of the
+// diaphragm: soft tissue (70 HU) wraps three fifths of it out to 22 mm, fat lies behind. Rays to
+// fat run through the crura; rays that crossed the lumen end a wall past its edge.
+TEST(SeededSegmentation, TubeStopsAtAFilledLumenWrappedInSoftTissue) {
+  const double cx = 45, cy = 45;
+  auto lumen = [&](double x, double y, double) { return std::hypot(x - cx, y - cy) <= 10.0; };
+  const Volume ct = synthetic_ct(60, 60, 60, [&](double x, double y, double) {
+    const double r = std::hypot(x - cx, y - cy);
+    if (r <= 10.0) return 400.0;
+    if (r <= 12.0) return 60.0;
+    const double angle = std::atan2(y - cy, x - cx);  // fat in the sector around +y (behind)
+    if (r <= 22.0 && std::abs(angle - M_PI / 2) > 0.4 * M_PI) return 70.0;
+    return -100.0;
+  });
+  Seeds seeds;
+  for (double z : {6.0, 20.0, 35.0, 50.0, 70.0, 82.0}) seeds.organs["aorta"].push_back({cx, cy, z});
+  seeds.background = {{10, 10, 45}, {80, 10, 45}, {10, 80, 45}, {80, 80, 20}};
+  SegmentOptions with;
+  SegmentOptions without;
+  without.tube_lumen_min_hu = 0;
+  const double d_with = dice_with(segment_seeded(ct, seeds, with, "synthetic"), 52, lumen);
+  const double d_without = dice_with(segment_seeded(ct, seeds, without, "synthetic"), 52, lumen);
+  std::printf("aorta Dice with the lumen edge %.3f, fat only %.3f\n", d_with, d_without);
+  EXPECT_GE(d_with, 0.90);
+  EXPECT_LT(d_without, d_with - 0.05);
+}
+
 // A heart: a contrast-filled blood pool (radius 25 mm, 500 HU) inside a myocardium of 8 mm
 // (130 HU), in fat, resting on a liver (70 HU) that touches the myocardium.
 TEST(SeededSegmentation, HeartWallJoinsTheMyocardiumButNotTheLiver) {
@@ -128,6 +155,43 @@ TEST(SeededSegmentation, FrontsMeetAtTheEdgeNotHalfwayBetweenSeeds) {
       }
   ASSERT_GT(core, 0u);
   EXPECT_EQ(kept, core);
+}
+
+// A chamber (sphere of 20 mm, 400 HU) with a vein of the same blood (radius 5 mm) leaving it,
+// seeded at its centre; a background click in the vein 8 mm outside the chamber. No intensity
+// barrier separates them: the fronts meet by path length, and an even split hands the click the
+// chamber's side up to 14 mm from its centre. Background paths counted twice stop it near the
+// chamber's edge.
+TEST(SeededSegmentation, BackgroundClickInAVeinDoesNotEatTheChamber) {
+  const double c = 45;
+  auto chamber = [&](double x, double y, double z) { return std::hypot(x - c, y - c, z - c) <= 20.0; };
+  // The chamber less its partial-volume rim (below the seed window; background takes it).
+  auto core = [&](double x, double y, double z) { return std::hypot(x - c, y - c, z - c) <= 17.0; };
+  const Volume ct = synthetic_ct(60, 60, 60, [&](double x, double y, double z) {
+    if (chamber(x, y, z) || (x > c && std::hypot(y - c, z - c) <= 5.0)) return 400.0;
+    return -100.0;
+  });
+  Seeds seeds;
+  seeds.organs["heart"] = {{c, c, c}};
+  seeds.background = {{c + 28, c, c}, {5, 5, 5}};
+  auto lost = [&](double weight) {
+    SegmentOptions o;
+    o.walls.clear();
+    o.edge_bin_hu = 100;  // noise steps stay in the lowest bin: the fronts meet by path length alone
+    o.background_length_weight = weight;
+    const Volume seg = segment_seeded(ct, seeds, o, "synthetic");
+    size_t n = 0;
+    for (int k = 0; k < seg.dims[2]; ++k)
+      for (int j = 0; j < seg.dims[1]; ++j)
+        for (int i = 0; i < seg.dims[0]; ++i)
+          n += core(i * kSpacing, j * kSpacing, k * kSpacing) && seg.values[seg.index(i, j, k)] != 51.0f;
+    return n;
+  };
+  const size_t even = lost(1.0), weighted = lost(2.0);
+  std::printf("chamber core voxels lost to the click: %zu split evenly, %zu with background paths x2\n", even,
+              weighted);
+  EXPECT_GT(even, 50u);
+  EXPECT_LT(weighted * 3, even);
 }
 
 }  // namespace

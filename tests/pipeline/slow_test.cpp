@@ -212,6 +212,16 @@ Volume segment_like_a_user(const Volume& ct, const Volume& ref, const std::vecto
       for (const auto& o : organs) organ |= std::lround(ref.values[x]) == o.second;
       leak[x] = seg.values[x] != 0.0f && !organ;
     }
+    // A user does not click the same spot twice: a leak the earlier clicks did not remove is
+    // passed over (voxels within 3 voxels of a click leave the candidates) for the next one.
+    for (const auto& p : seeds.background) {
+      const auto v = ct.voxel(p);
+      const int c[3] = {static_cast<int>(std::lround(v[0])), static_cast<int>(std::lround(v[1])),
+                        static_cast<int>(std::lround(v[2]))};
+      for (int k = std::max(0, c[2] - 3); k <= std::min(ct.dims[2] - 1, c[2] + 3); ++k)
+        for (int j = std::max(0, c[1] - 3); j <= std::min(ct.dims[1] - 1, c[1] + 3); ++j)
+          for (int i = std::max(0, c[0] - 3); i <= std::min(ct.dims[0] - 1, c[0] + 3); ++i) leak[ct.index(i, j, k)] = 0;
+    }
     const auto click = centre_of_largest(ct, leak, 50);
     if (!click) break;
     seeds.background.push_back(*click);
@@ -234,8 +244,8 @@ int env_int(const char* name, int fallback) {
   return v ? std::atoi(v) : fallback;
 }
 
-// The target is Dice >= 0.90 for heart and aorta; measured 0.899 and 0.860 (see
-// docs/pipeline.md). These floors guard against regressions below what is reached now.
+// The target: Dice >= 0.90 for heart and aorta with at most 10 clicks per organ
+// (measured 0.910 and 0.908 with this protocol; docs/pipeline.md).
 TEST(SeededSegmentation, DiceFloorsChestCrops) {
   test::Scratch tmp;
   const int ring = env_int("SOFTATLAS_RING", 10), corrections = env_int("SOFTATLAS_CORRECTIONS", 5);
@@ -249,7 +259,7 @@ TEST(SeededSegmentation, DiceFloorsChestCrops) {
     const Volume seg = segment_like_a_user(ct, ref, {{"heart", 51}, {"aorta", 52}}, tmp("heart_seeds.yaml"), ring, corrections);
     const double d = dice(seg, 51, ref, 51);
     std::printf("DICE heart %.4f (aorta on the heart crop %.4f)\n", d, dice(seg, 52, ref, 52));
-    EXPECT_GE(d, 0.88);
+    EXPECT_GE(d, 0.90);
   }
   {
     const Volume ct = read_volume(chest("ct_aorta_crop.nii.gz"));
@@ -259,7 +269,7 @@ TEST(SeededSegmentation, DiceFloorsChestCrops) {
     size_t ns = 0, nr = 0;
     for (size_t i = 0; i < seg.values.size(); ++i) ns += seg.values[i] == 52, nr += ref.values[i] == 52;
     std::printf("DICE aorta %.4f (voxels %zu segmented, %zu reference)\n", d, ns, nr);
-    EXPECT_GE(d, 0.84);
+    EXPECT_GE(d, 0.90);
   }
 }
 

@@ -5,6 +5,7 @@
 #include <zlib.h>
 
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 
@@ -156,14 +157,35 @@ TEST(VolumeIo, TruncatedAndCorruptFilesNameTheFile) {
   EXPECT_THROW(read_volume(tmp("dcm")), InputError);
 }
 
+// The 12 sform numbers (srow_x, srow_y, srow_z) and the first voxel, read from the file's bytes.
+std::pair<std::array<float, 12>, int> raw_sform_and_first_voxel(const std::string& path, int datatype_bytes) {
+  gzFile f = gzopen(path.c_str(), "rb");
+  unsigned char h[352];
+  EXPECT_EQ(gzread(f, h, 352), 352);
+  std::array<float, 12> srow{};
+  std::memcpy(srow.data(), h + 280, 48);
+  int first = 0;
+  EXPECT_EQ(gzread(f, &first, datatype_bytes), datatype_bytes);
+  gzclose(f);
+  return {srow, first};
+}
+
 TEST(VolumeIo, WrittenLabelMapReadsBackOnTheSameGrid) {
   test::Scratch tmp;
-  const Volume v = read_volume(abdomen("example_seg_dicom.nii.gz"));
+  // This map's qform has qfac = -1 (pixdim[0]), for which VTK reverses the slices: the reader
+  // undoes that, so voxel indices are the file's and a written map has the input's own header.
+  const std::string in = abdomen("example_seg_dicom.nii.gz");
+  const Volume v = read_volume(in);
+  const auto p = v.world(0, 0, 0);
+  EXPECT_NEAR(p[2], -804.5, 1e-4);  // README: z runs from -804.5 (first slice) to -766.5
   write_label_nifti(v, tmp("l.nii.gz"));
   const Volume w = read_volume(tmp("l.nii.gz"));
   ASSERT_EQ(w.dims, v.dims);
   EXPECT_EQ(w.values, v.values);
   for (int c = 0; c < 16; ++c) EXPECT_NEAR(w.ijk_to_ras[c], v.ijk_to_ras[c], 1e-4);
+  const auto a = raw_sform_and_first_voxel(in, 1), b = raw_sform_and_first_voxel(tmp("l.nii.gz"), 1);
+  for (int c = 0; c < 12; ++c) EXPECT_NEAR(a.first[c], b.first[c], 1e-4) << c;
+  EXPECT_EQ(b.second & 0xff, static_cast<int>(v.values[0]));
 }
 
 // The shared multi-label map carries TotalSegmentator's table in a Caret XML header extension

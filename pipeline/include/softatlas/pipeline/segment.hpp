@@ -26,6 +26,11 @@ struct SegmentOptions {
   double intensity_sigma_scale_high = 4.0;  // and up to this many above (dense contrast at an inflow)
   double intensity_sigma_max_hu = 100.0;    // cap of the seed sigma
   double edge_bin_hu = 10.0;                // intensity steps are compared in bins of this size
+  // Where fronts meet over equal barriers, a background front's path counts this many times its
+  // length: organ clicks go deep inside an organ, background clicks onto a leak near its edge, so
+  // an even split of the distance would cut into the organ (a click in a pulmonary vein took a
+  // fifth of the left atrium; docs/pipeline.md).
+  double background_length_weight = 2.0;
   int closing_radius = 1;              // voxels, morphological clean-up
   // Organs whose label holds a contrast-filled cavity and a muscular wall that no blood-pool
   // window admits (the heart: chambers + myocardium). After the competitive growth, such an
@@ -42,6 +47,9 @@ struct SegmentOptions {
   // bolus leaves part of the lumen dark, and a wide window leaks into bone and branches.
   std::vector<std::string> tubes = {"aorta"};
   double tube_stop_hu = -30;       // the tube's wall ends where the smoothed image drops below this
+  // A ray that crossed a contrast-filled lumen (this bright or more) ends a wall past its edge,
+  // also where soft tissue rather than fat touches the wall; 0 switches it off.
+  double tube_lumen_min_hu = 200;
   double smoothing_mm = 1.0;  // Gaussian sigma of the image the growth, walls and tubes read
 };
 

@@ -43,7 +43,9 @@ struct Volume {
 Volume read_volume(const std::string& path);
 
 // Writes a label volume as NIfTI (.nii or .nii.gz, uint8 if all values fit, else int16) with the
-// volume's ijk_to_ras as sform and qform. Atomic (temp file + rename).
+// volume's ijk_to_ras as sform (qform unset). Atomic (temp file + rename). A label map on a NIfTI
+// CT's grid keeps the CT's index order (read_volume does not reorder NIfTI voxels, qfac = -1
+// included).
 void write_label_nifti(const Volume& labels, const std::string& path);
 
 // SHA-256 of a file (or of every file of a folder, in name order), lowercase hex.
