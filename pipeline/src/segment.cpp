@@ -308,15 +308,10 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     }
     // The vessel's own wall (wall_mm outside the tube, which is the lumen) is nobody's: another
     // organ's wall growth (the heart's myocardium at the aortic root) must not take it.
-    std::vector<char> shell(n);
+    Mask shell(n);
     for (size_t id = 0; id < n; ++id) shell[id] = tube[id] == kTubeInside;
     const int layers = std::max(1, static_cast<int>(std::lround(to.wall_mm / std::min({sp[0], sp[1], sp[2]}))));
-    for (int it = 0; it < layers; ++it) {
-      std::vector<char> next = shell;
-      for (size_t id = 0; id < n; ++id)
-        if (shell[id]) for_each_face_neighbour(d, id, [&](size_t q, int) { next[q] = 1; });
-      shell.swap(next);
-    }
+    for (int it = 0; it < layers; ++it) dilate(shell, d);
     for (size_t id = 0; id < n; ++id)
       if (shell[id] && tube[id] != kTubeInside) vessel_wall[id] = 1;
     // The grown region is kept inside the tube and in the band along its sides: a lumen is not

@@ -229,6 +229,13 @@ std::vector<double> cast(const Grid& g, const std::vector<float>& smooth, const 
   return len;
 }
 
+// Where every ray ends: at fat/air, at bright voxels not `ours` (bone, another vessel), at another
+// organ or a background click.
+bool leaves_vessel(const std::vector<char>& other_organ, const std::vector<char>& ours, const TubeOptions& o, size_t id,
+                   double v) {
+  return other_organ[id] || v < o.stop_hu || (v > o.bright_hu && !ours[id]);
+}
+
 // Fits a circle in the plane through c0 normal to t: rays stop at fat/air, at bright voxels not
 // `ours`, at another organ or at the grid's edge; a robust circle fit to their ends gives the
 // radius and the new centre, from which the rays are cast again (three rounds).
@@ -239,7 +246,7 @@ Section fat_section(const Grid& g, const std::vector<float>& smooth, const std::
   for (int round = 0; round < 3; ++round) {
     if (!g.inside(c) || smooth[g.nearest(c)] < o.stop_hu) return Section{c, 0, 0};
     const auto len = cast(g, smooth, rays, c, o.max_radius_mm, o.wall_mm, [&](size_t id, double v, double&) {
-      return other_organ[id] || v < o.stop_hu || (v > o.bright_hu && !ours[id]) ? Stop::here : Stop::go_on;
+      return leaves_vessel(other_organ, ours, o, id, v) ? Stop::here : Stop::go_on;
     });
     const Circle f = fit_circle(len, rays.cs, rays.sn, o.max_radius_mm);
     if (!f.ok) return Section{c, 0, 0};
@@ -262,7 +269,7 @@ Section fit_section(const Grid& g, const std::vector<float>& smooth, const std::
   // the rays to fat run on through it. In a crescent of contrast beside unenhanced blood, rays
   // through the crescent end at the wall anyway and the others never see contrast.
   const auto len = cast(g, smooth, rays, fat.c, o.max_radius_mm, o.wall_mm, [&](size_t id, double v, double& peak) {
-    if (other_organ[id] || v < o.stop_hu || (v > o.bright_hu && !ours[id])) return Stop::here;
+    if (leaves_vessel(other_organ, ours, o, id, v)) return Stop::here;
     peak = std::max(peak, v);
     return peak >= o.lumen_min_hu && v < std::min(o.lumen_edge_hu, o.tissue_hu + o.edge_fraction * (peak - o.tissue_hu))
                ? Stop::after_wall
