@@ -48,8 +48,11 @@ int cmd_view(const std::vector<std::string>& args) {
   app.add_option("--screenshot", screenshot, "write the last frame as PNG");
   app.add_option("--view", view, "anterior|posterior|left|right|superior|inferior");
   app.add_flag("--labels", labels, "label every organ");
+  std::string slice;
+  app.add_option("--slice", slice, "cut the organs at a plane: axial:Z, coronal:Y or sagittal:X (mm, RAS)");
   app.add_flag("--no-realtime", norealtime, "do not ask for SCHED_FIFO for the haptic loop");
   if (int rc = parse(app, args, 1)) return rc < 0 ? 0 : rc;
+  const SlicePlane slice_plane = parse_slice_option(slice);
   std::unique_ptr<Lesson> lesson;
   io::OrganSet set;
   if (is_lesson_file(target)) {
@@ -65,6 +68,8 @@ int cmd_view(const std::vector<std::string>& args) {
     wo.realtime = !norealtime;
     if (app.count("--frames")) wo.frames = frames;
     wo.screenshot = screenshot;
+    wo.slice = slice;
+    wo.slice_plane = slice_plane;
     return run_window(set, lesson.get(), wo);
   }
   std::vector<std::string> shown, context;
@@ -82,6 +87,7 @@ int cmd_view(const std::vector<std::string>& args) {
   viewer.camera.set_view(view);
   viewer.frame_all();
   if (labels) viewer.labeled.assign(viewer.labeled.size(), true);
+  viewer.slice = slice_plane;
   if (lesson) viewer.caption.title = lesson->title;
   std::fprintf(stderr, "view: %s, %zu organs, %zu faces, %s\n", target.c_str(), scene.view_organs().size(),
                viewer.renderer().face_count(), ctx->describe().c_str());
@@ -107,8 +113,29 @@ int cmd_lesson(const std::vector<std::string>& args) {
     app.add_option("lesson", lesson_path, "lesson .yaml")->required();
     app.add_option("--device", script_path, "also validate a device script against the lesson");
     if (int rc = parse(app, args, 2)) return rc < 0 ? 0 : rc;
-    const Lesson lesson = load_lesson(lesson_path);
-    if (!script_path.empty()) check_script_matches(load_device_script(script_path), lesson);
+    // Every error of the lesson and of the script, one FILE:LINE:COLUMN: message line each (the
+    // format editors and CI problem matchers read), then exit 1.
+    int errors = 0;
+    auto report = [&](const InputError& e) {
+      std::fprintf(stderr, "%s\n", e.what());
+      ++errors;
+    };
+    std::unique_ptr<Lesson> loaded;
+    try {
+      loaded = std::make_unique<Lesson>(load_lesson(lesson_path));
+    } catch (const InputError& e) {
+      report(e);
+    }
+    if (!script_path.empty()) {
+      try {
+        const DeviceScript script = load_device_script(script_path);
+        if (loaded) check_script_matches(script, *loaded);
+      } catch (const InputError& e) {
+        report(e);
+      }
+    }
+    if (errors) return 1;
+    const Lesson& lesson = *loaded;
     std::printf("%s: ok (%zu steps, %d tasks, organ set %s)\n", lesson_path.c_str(), lesson.steps.size(),
                 lesson.task_count(), lesson.organ_set_path.c_str());
     return 0;

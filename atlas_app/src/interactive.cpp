@@ -7,11 +7,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <thread>
 
 #include "softatlas/app/haptics.hpp"
+#include "softatlas/app/lesson_run.hpp"
 #include "softatlas/app/viewer.hpp"
 
 namespace softatlas::app {
@@ -87,6 +89,31 @@ struct PhysicsThread {
   }
 };
 
+// A key press (not held): the frame's state against the previous frame's.
+struct Keys {
+  GLFWwindow* win = nullptr;
+  std::map<int, bool> down;
+  bool pressed(int key) {
+    const bool now = glfwGetKey(win, key) == GLFW_PRESS;
+    const bool was = down[key];
+    down[key] = now;
+    return now && !was;
+  }
+};
+
+const char* kHelp =
+    "Mouse\n"
+    "  left drag on an organ   grasp and pull it (force arrow at the grasp point)\n"
+    "  left click              answer a pick step\n"
+    "  right drag / wheel      orbit / zoom\n"
+    "Keys\n"
+    "  Right / Left arrow      next / previous lesson step\n"
+    "  1 .. 8                  answer a question step\n"
+    "  r                       reset the organs and retry this step\n"
+    "  space                   pause / resume the physics\n"
+    "  h                       this help\n"
+    "  Escape or q             quit";
+
 }  // namespace
 
 int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOptions& opt) {
@@ -143,29 +170,90 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
   double fps = 0;
   auto fps_t0 = Clock::now();
 
-  auto apply_step = [&](const LessonStep& s) {
-    auto vi = [&](const std::string& n) { return static_cast<size_t>(scene->view_index(n)); };
-    viewer->caption.text = s.kind == StepKind::say ? s.text : s.hint;
-    switch (s.kind) {
-      case StepKind::camera:
-        if (!s.camera.view.empty()) viewer->camera.set_view(s.camera.view);
-        if (s.camera.distance_mm > 0) viewer->camera.distance = static_cast<float>(s.camera.distance_mm);
-        break;
-      case StepKind::highlight:
-        for (auto& st : viewer->styles) st.highlight = false;
-        for (const auto& n : s.organs) viewer->styles[vi(n)].highlight = true;
-        break;
-      case StepKind::hide: for (const auto& n : s.organs) viewer->styles[vi(n)].visible = false; break;
-      case StepKind::show: for (const auto& n : s.organs) viewer->styles[vi(n)].visible = true; break;
-      case StepKind::isolate:
-        for (auto& st : viewer->styles) st.visible = false;
-        for (const auto& n : s.organs) viewer->styles[vi(n)].visible = true;
-        break;
-      case StepKind::label: for (const auto& n : s.organs) viewer->labeled[vi(n)] = true; break;
-      default: break;
+  // Lesson state: the current step (-1: none; steps.size(): the end screen) and one outcome per
+  // step. A passed task stays passed; a failed one can be tried again (r, or a new grasp/click).
+  std::vector<TaskOutcome> outcomes(lesson ? lesson->steps.size() : 0);
+  bool show_help = false;
+  auto current = [&]() -> const LessonStep* {
+    if (!lesson || lesson_step < 0 || lesson_step >= static_cast<int>(lesson->steps.size())) return nullptr;
+    return &lesson->steps[static_cast<size_t>(lesson_step)];
+  };
+  auto task_status = [&]() {
+    const LessonStep* s = current();
+    if (!s || !is_task(s->kind)) {
+      viewer->caption.status.clear();
+      return;
     }
+    const TaskOutcome& o = outcomes[static_cast<size_t>(lesson_step)];
+    viewer->caption.ok = !o.done || o.passed;
+    if (!o.done) viewer->caption.status = s->kind == StepKind::pull ? "grasp " + s->pull.organ + " and pull (drag)" :
+                                          s->kind == StepKind::pick ? "click an organ" :
+                                          s->kind == StepKind::question ? "choose an answer (click it or press its number)" : "";
+    else viewer->caption.status = std::string(o.passed ? "PASS: " : "FAIL: ") + o.reason +
+                                  (o.passed ? "   (Right arrow: next step, r: retry)" : "   (try again; r: reset)");
+  };
+  // Shows step k: the display state of steps 0..k replayed from the start (so Left arrow undoes a
+  // hide), the step's caption, and its outcome so far.
+  auto goto_step = [&](int k) {
+    if (!lesson) return;
+    lesson_step = std::clamp(k, 0, static_cast<int>(lesson->steps.size()));
+    for (auto& st : viewer->styles) {
+      st.visible = true;
+      st.highlight = false;
+    }
+    std::fill(viewer->labeled.begin(), viewer->labeled.end(), false);
+    viewer->slice = SlicePlane{};
+    viewer->camera.set_view("anterior");
+    viewer->frame_all();
+    if (lesson_step == static_cast<int>(lesson->steps.size())) {
+      for (const LessonStep& s : lesson->steps) apply_view_step(s, *viewer, *scene);
+      show_end_screen(*lesson, outcomes, *viewer);
+      return;
+    }
+    for (int i = 0; i <= lesson_step; ++i) apply_view_step(lesson->steps[static_cast<size_t>(i)], *viewer, *scene);
+    const LessonStep& s = *current();
+    viewer->caption.title = caption_title(*lesson, static_cast<size_t>(lesson_step));
+    viewer->caption.text = s.kind == StepKind::say ? s.text : s.kind == StepKind::question ? s.hint.empty() ? s.question.ask : s.hint + "\n" + s.question.ask : s.hint;
+    viewer->hover_names = s.kind != StepKind::pick && s.kind != StepKind::question;
+    TaskOutcome& o = outcomes[static_cast<size_t>(lesson_step)];
+    if (s.kind == StepKind::wait && !o.done) o = {true, true, 1, "waited"};
+    task_status();
     peak_force = 0;
   };
+  auto record = [&](bool passed, const std::string& reason) {
+    TaskOutcome& o = outcomes[static_cast<size_t>(lesson_step)];
+    if (o.passed) return;  // a passed task stays passed
+    o.done = true;
+    o.passed = passed;
+    o.reason = reason;
+    task_status();
+  };
+  auto answer = [&](size_t choice) {
+    const LessonStep* s = current();
+    if (!s || s->kind != StepKind::question || choice >= s->question.choices.size()) return;
+    if (outcomes[static_cast<size_t>(lesson_step)].passed) return;
+    outcomes[static_cast<size_t>(lesson_step)].attempts++;
+    const std::string& right = s->question.choices[static_cast<size_t>(s->question.answer)];
+    const std::string& got = s->question.choices[choice];
+    record(got == right, got == right ? "answered " + got : "answered " + got + ", not right");
+  };
+  // r / retry: the organs back to rest and the current task open again (its tries are kept).
+  auto retry = [&]() {
+    rebuild = 2;
+    if (const LessonStep* c = current(); c && is_task(c->kind) && c->kind != StepKind::wait) {
+      const int tries = outcomes[static_cast<size_t>(lesson_step)].attempts;
+      outcomes[static_cast<size_t>(lesson_step)] = {false, false, tries, ""};
+      task_status();
+    }
+  };
+  if (lesson) goto_step(0);
+  if (!opt.slice.empty()) viewer->slice = opt.slice_plane;
+  int grasp_view = -1;
+  std::vector<int32_t> grasp_local;
+  Keys keys{ctx->window(), {}};
+  // Sticky keys: a press shorter than a frame (llvmpipe can be slow) is still seen once.
+  glfwSetInputMode(ctx->window(), GLFW_STICKY_KEYS, GLFW_TRUE);
+  Eigen::Vector3f hand_off(0, 0, 0);  // the hand's offset from the grasp point (mm)
 
   GLFWwindow* win = ctx->window();
   while (!ctx->should_close()) {
@@ -189,7 +277,9 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
     if (!io.WantCaptureMouse) {
       const bool left = glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
       const bool right = glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
-      if (left && !dragging && hover.organ >= 0 && scene->model_organ(hover.organ) >= 0) {
+      const LessonStep* cur = current();
+      const bool answering = cur && (cur->kind == StepKind::pick || cur->kind == StepKind::question);
+      if (left && !dragging && !answering && hover.organ >= 0 && scene->model_organ(hover.organ) >= 0) {
         // Grasp: the patch within 10 mm of the picked point on the deformed surface.
         const int v = hover.organ;
         std::vector<int32_t> local;
@@ -198,6 +288,16 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
           if ((Eigen::Vector3f(P[3 * i], P[3 * i + 1], P[3 * i + 2]) - hover.point).norm() < 10.0f)
             local.push_back(static_cast<int32_t>(i));
         if (local.empty()) local.push_back(hover.nearest_vertex);
+        grasp_view = v;
+        grasp_local = local;
+        hand_off.setZero();
+        peak_force = 0;
+        if (cur && cur->kind == StepKind::pull && !outcomes[static_cast<size_t>(lesson_step)].passed) {
+          TaskOutcome& o = outcomes[static_cast<size_t>(lesson_step)];
+          o.attempts++;
+          o.done = false;  // a new try after a failure
+          task_status();
+        }
         std::lock_guard<std::mutex> lock(phys->mutex);
         phys->grasp_request = scene->global_vertices(v, local);
         phys->grasp_pending = !phys->grasp_request.empty();
@@ -216,8 +316,10 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
                                 static_cast<float>(viewer->camera.height);
         const Eigen::Vector3f off = (right_v * (px - static_cast<float>(grab_x)) - up_v * (py - static_cast<float>(grab_y))) * mm_per_px;
         mouse.set({off.x() * 1e-3, off.y() * 1e-3, off.z() * 1e-3}, true);
+        hand_off = off;
       } else if (!left && dragging) {
         dragging = false;
+        grasp_view = -1;
         mouse.set({0, 0, 0}, false);
         std::lock_guard<std::mutex> lock(phys->mutex);
         phys->release_pending = true;
@@ -228,14 +330,24 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
       }
       orbiting = right;
       if (io.MouseWheel != 0) viewer->camera.distance *= std::pow(0.9f, io.MouseWheel);
-      // pick task: a click (press and release without drag) on an organ is the answer
-      if (lesson && lesson_step >= 0 && lesson->steps[static_cast<size_t>(lesson_step)].kind == StepKind::pick &&
-          ImGui::IsMouseClicked(ImGuiMouseButton_Left) && hover.organ >= 0) {
-        const std::string& want = lesson->steps[static_cast<size_t>(lesson_step)].organs[0];
+      // pick task: a click on an organ is the answer; a wrong one can be corrected by clicking again
+      if (cur && cur->kind == StepKind::pick && ImGui::IsMouseClicked(ImGuiMouseButton_Left) && hover.organ >= 0 &&
+          !outcomes[static_cast<size_t>(lesson_step)].passed) {
+        const std::string& want = cur->organs[0];
         const std::string got = scene->name(hover.organ);
-        viewer->caption.status = got == want ? "PASS: picked " + got : "FAIL: picked " + got + ", expected " + want;
-        viewer->caption.ok = got == want;
+        outcomes[static_cast<size_t>(lesson_step)].attempts++;
+        record(got == want, got == want ? "picked " + got : "picked " + got + ", expected " + want);
       }
+    }
+    if (!io.WantCaptureKeyboard) {
+      if (keys.pressed(GLFW_KEY_ESCAPE) || keys.pressed(GLFW_KEY_Q)) glfwSetWindowShouldClose(win, GLFW_TRUE);
+      if (keys.pressed(GLFW_KEY_H)) show_help = !show_help;
+      if (keys.pressed(GLFW_KEY_SPACE)) phys->paused.store(!phys->paused.load());
+      if (keys.pressed(GLFW_KEY_R)) retry();
+      if (keys.pressed(GLFW_KEY_RIGHT) && lesson) goto_step(lesson_step + 1);
+      if (keys.pressed(GLFW_KEY_LEFT) && lesson) goto_step(lesson_step - 1);
+      for (int k = 0; k < 8; ++k)
+        if (keys.pressed(GLFW_KEY_1 + k)) answer(static_cast<size_t>(k));
     }
     last_x = mx;
     last_y = my;
@@ -243,14 +355,37 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
     viewer->texts.clear();
     const Vec3d f = mouse.force();
     const float fmag = static_cast<float>(std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]));
-    if (dragging) {
+    if (dragging && grasp_view >= 0 && !draw[static_cast<size_t>(grasp_view)].empty()) {
       peak_force = std::max(peak_force, static_cast<double>(fmag));
+      // The grasp point where the tissue is now (the patch's centroid), the hand's target, and the
+      // force on the hand as an arrow from the grasp point (60 mm per newton, at least 20 mm).
+      const auto& P = draw[static_cast<size_t>(grasp_view)];
+      Eigen::Vector3f c(0, 0, 0);
+      for (int32_t i : grasp_local) c += Eigen::Vector3f(P[3 * static_cast<size_t>(i)], P[3 * static_cast<size_t>(i) + 1], P[3 * static_cast<size_t>(i) + 2]);
+      c /= static_cast<float>(grasp_local.size());
       const Eigen::Vector3f fv(static_cast<float>(f[0]), static_cast<float>(f[1]), static_cast<float>(f[2]));
-      const Eigen::Vector3f tip = grab_point + (fmag > 0 ? Eigen::Vector3f(fv / fmag * std::max(10.0f, 20.0f * fmag)) : Eigen::Vector3f::Zero());
-      viewer->lines.push_back({grab_point, tip, {1.0f, 0.9f, 0.2f, 1.0f}});
+      const Eigen::Vector3f tip = c + (fmag > 0 ? Eigen::Vector3f(fv / fmag * std::max(20.0f, 60.0f * fmag)) : Eigen::Vector3f::Zero());
+      const Eigen::Vector3f hand = grab_point + hand_off;
+      viewer->lines.push_back({c, hand, {0.8f, 0.8f, 0.85f, 0.7f}});
+      add_arrow(viewer->lines, c, tip, {1.0f, 0.85f, 0.1f, 1.0f});
       char b[32];
       std::snprintf(b, sizeof b, "%.2f N", fmag);
       viewer->texts.push_back({tip, b});
+      if (const LessonStep* cur = current(); cur && cur->kind == StepKind::pull && cur->pull.organ == scene->name(grasp_view)) {
+        double disp;
+        {
+          std::lock_guard<std::mutex> lock(phys->mutex);
+          disp = phys->max_disp_mm;
+        }
+        char r[128];
+        if (peak_force > cur->pull.max_force_N) {
+          std::snprintf(r, sizeof r, "pulled too hard: peak force %.2f N above the %.2f N allowed", peak_force, cur->pull.max_force_N);
+          record(false, r);
+        } else if (disp >= cur->pull.min_displacement_mm) {
+          std::snprintf(r, sizeof r, "reached %.1f mm with a peak force of %.2f N", disp, peak_force);
+          record(true, r);
+        }
+      }
     }
     if (++frames % 30 == 0) {
       fps = 30.0 / std::chrono::duration<double>(Clock::now() - fps_t0).count();
@@ -290,27 +425,33 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
       }
       if (lesson && ImGui::CollapsingHeader("Lesson", ImGuiTreeNodeFlags_DefaultOpen)) {
         ImGui::TextWrapped("%s", lesson->title.c_str());
-        if (ImGui::Button("< prev") && lesson_step > 0) apply_step(lesson->steps[static_cast<size_t>(--lesson_step)]);
+        if (ImGui::Button("< prev")) goto_step(lesson_step - 1);
         ImGui::SameLine();
-        if (ImGui::Button("next >") && lesson_step + 1 < static_cast<int>(lesson->steps.size()))
-          apply_step(lesson->steps[static_cast<size_t>(++lesson_step)]);
-        if (lesson_step >= 0) {
-          const LessonStep& s = lesson->steps[static_cast<size_t>(lesson_step)];
-          viewer->caption.title = "step " + std::to_string(lesson_step + 1) + ": " + to_string(s.kind);
-          ImGui::Text("step %d/%zu: %s", lesson_step + 1, lesson->steps.size(), to_string(s.kind));
-          if (s.kind == StepKind::pull) {
+        if (ImGui::Button("next >")) goto_step(lesson_step + 1);
+        ImGui::SameLine();
+        if (ImGui::Button("retry (r)")) retry();
+        int done = 0, passed = 0, tasks = 0;
+        for (size_t i = 0; i < outcomes.size(); ++i)
+          if (is_task(lesson->steps[i].kind)) {
+            ++tasks;
+            done += outcomes[i].done;
+            passed += outcomes[i].passed;
+          }
+        if (const LessonStep* s = current()) {
+          ImGui::Text("step %d/%zu: %s", lesson_step + 1, lesson->steps.size(), to_string(s->kind));
+          if (s->kind == StepKind::pull) {
             double disp;
             {
               std::lock_guard<std::mutex> lock(phys->mutex);
               disp = phys->max_disp_mm;
             }
-            ImGui::Text("pull %s: %.1f / %.1f mm, peak %.2f / %.2f N", s.pull.organ.c_str(), disp,
-                        s.pull.min_displacement_mm, peak_force, s.pull.max_force_N);
-            const bool ok = disp >= s.pull.min_displacement_mm && peak_force <= s.pull.max_force_N;
-            viewer->caption.status = ok ? "PASS" : (peak_force > s.pull.max_force_N ? "too hard" : "keep pulling");
-            viewer->caption.ok = ok;
+            ImGui::Text("pull %s: %.1f / %.1f mm, peak %.2f / %.2f N", s->pull.organ.c_str(), dragging ? disp : 0.0,
+                        s->pull.min_displacement_mm, peak_force, s->pull.max_force_N);
           }
+        } else {
+          ImGui::Text("end of the lesson");
         }
+        ImGui::Text("score: %d of %d tasks passed (%d tried)", passed, tasks, done);
       }
       if (ImGui::CollapsingHeader("Stats", ImGuiTreeNodeFlags_DefaultOpen)) {
         double us;
@@ -324,6 +465,26 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         ImGui::Text("tool force %.2f N (limit %.1f N)", fmag, opt.max_force_N);
       }
       ImGui::End();
+      if (const LessonStep* s = current(); s && s->kind == StepKind::question) {
+        ImGui::SetNextWindowPos(ImVec2(10, static_cast<float>(ctx->height()) - 230), ImGuiCond_Always);
+        ImGui::SetNextWindowSizeConstraints(ImVec2(380, 0), ImVec2(600, 400));
+        ImGui::SetNextWindowBgAlpha(0.85f);
+        ImGui::Begin("Question", nullptr, ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoCollapse);
+        ImGui::TextWrapped("%s", s->question.ask.c_str());
+        for (size_t i = 0; i < s->question.choices.size(); ++i) {
+          const std::string b = std::to_string(i + 1) + ")  " + s->question.choices[i];
+          if (ImGui::Button(b.c_str())) answer(i);
+        }
+        ImGui::End();
+      }
+      if (show_help) {
+        ImGui::SetNextWindowPos(ImVec2(0.5f * static_cast<float>(ctx->width()), 0.5f * static_cast<float>(ctx->height())),
+                                ImGuiCond_Always, ImVec2(0.5f, 0.5f));
+        ImGui::SetNextWindowBgAlpha(0.92f);
+        ImGui::Begin("Help (h to close)", nullptr, ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoCollapse);
+        ImGui::TextUnformatted(kHelp);
+        ImGui::End();
+      }
     });
     if (opt.frames > 0 && frames >= opt.frames) {
       if (!opt.screenshot.empty()) viewer->save_png(opt.screenshot);  // back buffer, before swap
@@ -349,6 +510,8 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         const auto styles = viewer->styles;
         const auto labeled = viewer->labeled;
         const Caption caption = viewer->caption;
+        const SlicePlane slice = viewer->slice;
+        const bool hover_names = viewer->hover_names;
         viewer.reset();
         scene.swap(fresh);
         viewer = std::make_unique<Viewer>(*ctx, *scene);
@@ -356,6 +519,8 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         viewer->styles = styles;
         viewer->labeled = labeled;
         viewer->caption = caption;
+        viewer->slice = slice;
+        viewer->hover_names = hover_names;
         status = rebuild == 1 ? "recompiled: " + std::to_string(scene->model.nvert) + " vertices" : "reset";
       } catch (const std::exception& e) {
         status = e.what();

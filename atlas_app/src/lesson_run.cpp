@@ -32,6 +32,73 @@ const char* fmt(const char* f, double a, double b) {
 
 }  // namespace
 
+void apply_view_step(const LessonStep& s, Viewer& viewer, const AtlasScene& scene) {
+  auto vi = [&](const std::string& n) { return static_cast<size_t>(scene.view_index(n)); };
+  switch (s.kind) {
+    case StepKind::camera: {
+      if (!s.camera.view.empty()) viewer.camera.set_view(s.camera.view);
+      if (s.camera.yaw_deg < 1e8) viewer.camera.yaw_deg = static_cast<float>(s.camera.yaw_deg);
+      if (s.camera.pitch_deg < 1e8) viewer.camera.pitch_deg = static_cast<float>(s.camera.pitch_deg);
+      viewer.frame_all();
+      if (!s.camera.target.empty()) viewer.camera.target = centroid_mm(scene, scene.view_index(s.camera.target));
+      if (s.camera.distance_mm > 0) viewer.camera.distance = static_cast<float>(s.camera.distance_mm);
+      break;
+    }
+    case StepKind::highlight:
+      for (auto& st : viewer.styles) st.highlight = false;
+      for (const auto& n : s.organs) viewer.styles[vi(n)].highlight = true;
+      break;
+    case StepKind::hide:
+      for (const auto& n : s.organs) viewer.styles[vi(n)].visible = false;
+      break;
+    case StepKind::show:
+      for (const auto& n : s.organs) viewer.styles[vi(n)].visible = true;
+      break;
+    case StepKind::isolate:
+      for (auto& st : viewer.styles) st.visible = false;
+      for (const auto& n : s.organs) viewer.styles[vi(n)].visible = true;
+      break;
+    case StepKind::label:
+      for (const auto& n : s.organs) viewer.labeled[vi(n)] = true;
+      break;
+    case StepKind::slice:
+      viewer.slice = slice_plane(s.slice);
+      break;
+    default:
+      break;
+  }
+}
+
+std::string caption_title(const Lesson& lesson, size_t step) {
+  std::string t;
+  for (size_t k = 0; k <= step && k < lesson.steps.size(); ++k)
+    if (!lesson.steps[k].title.empty()) t = lesson.steps[k].title;
+  return lesson.title + "  -  step " + std::to_string(step + 1) + "/" + std::to_string(lesson.steps.size()) +
+         (t.empty() ? "" : ": " + t);
+}
+
+void show_end_screen(const Lesson& lesson, const std::vector<TaskOutcome>& per_step, Viewer& viewer) {
+  int tasks = 0, passed = 0;
+  std::string text;
+  for (size_t i = 0; i < lesson.steps.size() && i < per_step.size(); ++i) {
+    if (!is_task(lesson.steps[i].kind)) continue;
+    const TaskOutcome& o = per_step[i];
+    ++tasks;
+    passed += o.passed ? 1 : 0;
+    std::string title = caption_title(lesson, i);
+    title = title.substr(title.find("step "));
+    text += std::string(o.passed ? "PASS  " : o.done ? "FAIL  " : "----  ") + title + " (" + to_string(lesson.steps[i].kind) + ")" +
+            (o.reason.empty() ? "" : ": " + o.reason) + (o.attempts > 1 ? "  [" + std::to_string(o.attempts) + " tries]" : "") + "\n";
+  }
+  viewer.caption.title = lesson.title + "  -  lesson complete";
+  viewer.caption.text = text;
+  viewer.caption.status = "Score: " + std::to_string(passed) + " of " + std::to_string(tasks) + " tasks passed";
+  viewer.caption.ok = passed == tasks;
+  viewer.lines.clear();
+  viewer.texts.clear();
+  viewer.hover_names = true;
+}
+
 LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const std::string& out_dir,
                         const RunOptions& opt) {
   check_script_matches(script, lesson);
@@ -69,40 +136,23 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
     r.task = is_task(s.kind);
     viewer.lines.clear();
     viewer.texts.clear();
-    viewer.caption.title = lesson.title + "  -  step " + std::to_string(i + 1) + "/" +
-                           std::to_string(lesson.steps.size()) + (s.title.empty() ? "" : ": " + s.title);
+    viewer.caption.title = caption_title(lesson, i);
+    viewer.hover_names = s.kind != StepKind::pick && s.kind != StepKind::question;
     viewer.caption.status.clear();
     viewer.caption.ok = true;
     if (s.kind == StepKind::say) viewer.caption.text = s.text;
     else if (!s.hint.empty()) viewer.caption.text = s.hint;
     auto vi = [&](const std::string& n) { return scene.view_index(n); };
     switch (s.kind) {
-      case StepKind::say: break;
-      case StepKind::camera: {
-        if (!s.camera.view.empty()) viewer.camera.set_view(s.camera.view);
-        if (s.camera.yaw_deg < 1e8) viewer.camera.yaw_deg = static_cast<float>(s.camera.yaw_deg);
-        if (s.camera.pitch_deg < 1e8) viewer.camera.pitch_deg = static_cast<float>(s.camera.pitch_deg);
-        viewer.frame_all();
-        if (!s.camera.target.empty()) viewer.camera.target = centroid_mm(scene, vi(s.camera.target));
-        if (s.camera.distance_mm > 0) viewer.camera.distance = static_cast<float>(s.camera.distance_mm);
-        break;
-      }
+      case StepKind::say:
+      case StepKind::camera:
       case StepKind::highlight:
-        for (auto& st : viewer.styles) st.highlight = false;
-        for (const auto& n : s.organs) viewer.styles[static_cast<size_t>(vi(n))].highlight = true;
-        break;
       case StepKind::hide:
-        for (const auto& n : s.organs) viewer.styles[static_cast<size_t>(vi(n))].visible = false;
-        break;
       case StepKind::show:
-        for (const auto& n : s.organs) viewer.styles[static_cast<size_t>(vi(n))].visible = true;
-        break;
       case StepKind::isolate:
-        for (auto& st : viewer.styles) st.visible = false;
-        for (const auto& n : s.organs) viewer.styles[static_cast<size_t>(vi(n))].visible = true;
-        break;
       case StepKind::label:
-        for (const auto& n : s.organs) viewer.labeled[static_cast<size_t>(vi(n))] = true;
+      case StepKind::slice:
+        apply_view_step(s, viewer, scene);
         break;
       case StepKind::pull: {
         const ScriptAction& a = script.actions[action++];
@@ -161,11 +211,11 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
                                       static_cast<float>(scene.state.y[static_cast<size_t>(g)]),
                                       static_cast<float>(scene.state.z[static_cast<size_t>(g)]));
         c /= static_cast<float>(verts.size());
-        // Arrow: the force on the hand (device force), 20 mm per newton, at least visible.
+        // Arrow: the force on the hand (device force), 60 mm per newton, at least 20 mm.
         const Eigen::Vector3f f(static_cast<float>(fr[0]), static_cast<float>(fr[1]), static_cast<float>(fr[2]));
-        const float len = std::max(10.0f, 20.0f * f.norm());
+        const float len = std::max(20.0f, 60.0f * f.norm());
         const Eigen::Vector3f tip = c + (f.norm() > 0 ? Eigen::Vector3f(f.normalized() * len) : Eigen::Vector3f(0, 0, 0));
-        viewer.lines.push_back({c, tip, {1.0f, 0.9f, 0.2f, 1.0f}});
+        add_arrow(viewer.lines, c, tip, {1.0f, 0.85f, 0.1f, 1.0f});
         viewer.texts.push_back({tip, fmt("%.2f N", f.norm(), 0)});
         sim::release(scene.state);
         break;
@@ -190,6 +240,15 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
             viewer.lines.push_back({hit.point - d, hit.point + d, {1.0f, 1.0f, 1.0f, 1.0f}});
           }
         }
+        break;
+      }
+      case StepKind::question: {
+        const ScriptAction& a = script.actions[action++];
+        r.picked = a.choice;
+        r.passed = a.choice == s.question.choices[static_cast<size_t>(s.question.answer)];
+        r.reason = r.passed ? "answered " + a.choice
+                            : "answered " + a.choice + ", the answer is " + s.question.choices[static_cast<size_t>(s.question.answer)];
+        viewer.caption.text = question_text(s.question, a.choice);
         break;
       }
       case StepKind::wait: {
@@ -231,14 +290,31 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
       j["organ"] = s.organs[0];
       j["picked"] = r.picked;
     }
+    if (s.kind == StepKind::question) {
+      j["answer"] = s.question.choices[static_cast<size_t>(s.question.answer)];
+      j["chosen"] = r.picked;
+    }
+    if (s.kind == StepKind::slice) j["slice"] = {{"plane", s.slice.plane}, {"at_mm", s.slice.at_mm}};
     if (r.task) j["reason"] = r.reason;
     if (!s.hint.empty() && r.task && !r.passed) j["hint"] = s.hint;
     steps.push_back(j);
     report.steps.push_back(r);
   }
+  std::vector<TaskOutcome> outcomes;
+  for (const StepResult& r : report.steps) {
+    outcomes.push_back({r.task, r.passed, r.task ? 1 : 0, r.task ? r.reason : ""});
+    report.tasks += r.task ? 1 : 0;
+    report.tasks_passed += r.task && r.passed ? 1 : 0;
+  }
+  show_end_screen(lesson, outcomes, viewer);
+  viewer.render();
+  viewer.render();
+  if (opt.write_png) viewer.save_png((std::filesystem::path(out_dir) / "end.png").string());
   report.physics_us_per_step = total_physics_steps ? total_physics_s / static_cast<double>(total_physics_steps) * 1e6 : 0;
   nlohmann::json root = {{"lesson", lesson.title}, {"file", lesson.file}, {"organ_set", lesson.organ_set_path},
-                         {"device_script", script.file}, {"passed", report.passed}, {"steps", steps},
+                         {"device_script", script.file}, {"passed", report.passed},
+                         {"score", {{"tasks", report.tasks}, {"passed", report.tasks_passed}}}, {"end_png", "end.png"},
+                         {"steps", steps},
                          {"simulated_time_s", lesson_time_s},
                          {"physics", {{"organs", scene.model.organs.size()}, {"vertices", scene.model.nvert},
                                       {"faces", scene.model.nface}, {"dt_s", scene.model.dt_s},

@@ -95,7 +95,7 @@ void PickBvh::refit_node(int32_t id) {
 }
 
 PickHit PickBvh::intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& dir,
-                           const std::vector<bool>& visible) const {
+                           const std::vector<bool>& visible, const Eigen::Vector4f& clip) const {
   PickHit hit;
   if (nodes_.empty()) return hit;
   float best = std::numeric_limits<float>::max();
@@ -134,6 +134,8 @@ PickHit PickBvh::intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f&
       if (v < 0.0f || u + v > 1.0f) continue;
       const float t = e2.dot(q) * inv_det;
       if (t <= 0.0f || t >= best) continue;
+      const Eigen::Vector3f at = origin + t * dir;
+      if (clip.head<3>().dot(at) + clip[3] > 0.0f) continue;  // cut away by a slice plane
       best = t;
       hit.organ = organ;
       hit.triangle = tri_local_[static_cast<size_t>(tri)];

@@ -17,22 +17,29 @@ uniform mat4 u_view;
 uniform mat4 u_proj;
 out vec3 v_normal;
 out vec3 v_pos;
+out vec3 v_world;
 void main() {
   vec4 p = u_view * vec4(in_pos, 1.0);
   v_pos = p.xyz;
+  v_world = in_pos;
   v_normal = mat3(u_view) * in_normal;
   gl_Position = u_proj * p;
 })";
 
 // Headlight Blinn-Phong; highlight adds a rim (Fresnel-like) glow so the organ stands out
-// without hiding its shading.
+// without hiding its shading. A slice plane (u_clip: n.x + d > 0 is cut away) removes the near
+// half; the inside (back faces, seen through the cut) is drawn flat and darker: the section.
 const char* kOrganFs = R"(#version 330 core
 in vec3 v_normal;
 in vec3 v_pos;
+in vec3 v_world;
 uniform vec4 u_color;
 uniform float u_highlight;
+uniform vec4 u_clip;
 out vec4 frag;
 void main() {
+  if (dot(u_clip.xyz, v_world) + u_clip.w > 0.0) discard;
+  if (!gl_FrontFacing) { frag = vec4(u_color.rgb * 0.55, u_color.a); return; }
   vec3 n = normalize(v_normal);
   vec3 v = normalize(-v_pos);
   vec3 l = normalize(vec3(0.3, 0.5, 1.0));
@@ -246,9 +253,12 @@ void Renderer::draw_organs(const Camera& camera, const std::vector<OrganStyle>& 
   gl_.UniformMatrix4fv(gl_.GetUniformLocation(organ_program_, "u_proj"), 1, GL_FALSE, proj.data());
   const GLint u_color = gl_.GetUniformLocation(organ_program_, "u_color");
   const GLint u_highlight = gl_.GetUniformLocation(organ_program_, "u_highlight");
+  const Eigen::Vector4f clip = slice_.clip();
+  gl_.Uniform4f(gl_.GetUniformLocation(organ_program_, "u_clip"), clip[0], clip[1], clip[2], clip[3]);
   gl_.Enable(GL_DEPTH_TEST);
   gl_.DepthFunc(GL_LESS);
-  gl_.Enable(GL_CULL_FACE);
+  if (slice_.active()) gl_.Disable(GL_CULL_FACE);  // the cut shows the inside
+  else gl_.Enable(GL_CULL_FACE);
   gl_.CullFace(GL_BACK);
   gl_.FrontFace(GL_CCW);
   auto draw = [&](size_t i) {
@@ -325,6 +335,60 @@ void Renderer::draw_cues(const Camera& camera, const Cues& cues) {
     lines.push_back({o, o + Eigen::Vector3f(len, 0, 0), {0.95f, 0.3f, 0.3f, 1.0f}});
     lines.push_back({o, o + Eigen::Vector3f(0, len, 0), {0.3f, 0.9f, 0.3f, 1.0f}});
     lines.push_back({o, o + Eigen::Vector3f(0, 0, len), {0.35f, 0.5f, 1.0f, 1.0f}});
+  }
+  gl_.Enable(GL_DEPTH_TEST);
+  draw_lines(camera, lines);
+}
+
+void add_arrow(std::vector<Line>& lines, const Eigen::Vector3f& a, const Eigen::Vector3f& b, const std::array<float, 4>& color) {
+  const Eigen::Vector3f d = b - a;
+  const float len = d.norm();
+  if (len <= 0) return;
+  const Eigen::Vector3f u = d / len;
+  const Eigen::Vector3f p = u.cross(std::abs(u.x()) < 0.9f ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY()).normalized();
+  const Eigen::Vector3f q = u.cross(p);
+  // GL core lines are one pixel wide: a bundle of shafts 0.4 mm apart reads as a thick arrow.
+  for (const Eigen::Vector3f& o : {Eigen::Vector3f::Zero().eval(), Eigen::Vector3f(0.4f * p), Eigen::Vector3f(-0.4f * p),
+                                   Eigen::Vector3f(0.4f * q), Eigen::Vector3f(-0.4f * q)})
+    lines.push_back({a + o, b + o, color});
+  const float h = std::min(0.3f * len, 8.0f);
+  for (const Eigen::Vector3f& side : {p, q, Eigen::Vector3f(-p), Eigen::Vector3f(-q)})
+    lines.push_back({b, b - h * u + 0.45f * h * side, color});
+}
+
+Eigen::Vector4f SlicePlane::clip() const {
+  if (!active()) return {0, 0, 0, -1};  // never > 0: nothing cut
+  Eigen::Vector4f c(0, 0, 0, 0);
+  c[axis] = keep_below ? 1.0f : -1.0f;
+  c[3] = keep_below ? -at_mm : at_mm;
+  return c;
+}
+
+void Renderer::set_depth_test(bool on) {
+  if (on) gl_.Enable(GL_DEPTH_TEST);
+  else gl_.Disable(GL_DEPTH_TEST);
+}
+
+void Renderer::draw_slice(const Camera& camera, const SlicePlane& plane) {
+  if (!plane.active()) return;
+  // The plane over the scene's bounds (+10%): a translucent sheet and its outline.
+  const Eigen::Vector3f size = hi_ - lo_;
+  const Eigen::Vector3f lo = lo_ - 0.1f * size, hi = hi_ + 0.1f * size;
+  const int a = plane.axis, u = (a + 1) % 3, v = (a + 2) % 3;
+  Eigen::Vector3f corner[4];
+  for (int k = 0; k < 4; ++k) {
+    corner[k][a] = plane.at_mm;
+    corner[k][u] = (k == 1 || k == 2) ? hi[u] : lo[u];
+    corner[k][v] = (k >= 2) ? hi[v] : lo[v];
+  }
+  std::vector<Line> lines;
+  const std::array<float, 4> edge{0.55f, 0.85f, 1.0f, 0.9f}, hatch{0.55f, 0.85f, 1.0f, 0.10f};
+  for (int k = 0; k < 4; ++k) lines.push_back({corner[k], corner[(k + 1) % 4], edge});
+  const int n = 16;  // hatching: reads as a sheet on every back end, without a blended fill
+  for (int k = 1; k < n; ++k) {
+    const float t = static_cast<float>(k) / n;
+    lines.push_back({corner[0] + t * (corner[1] - corner[0]), corner[3] + t * (corner[2] - corner[3]), hatch});
+    lines.push_back({corner[0] + t * (corner[3] - corner[0]), corner[1] + t * (corner[2] - corner[1]), hatch});
   }
   gl_.Enable(GL_DEPTH_TEST);
   draw_lines(camera, lines);

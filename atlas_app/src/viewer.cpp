@@ -74,7 +74,7 @@ PickHit Viewer::pick(float px, float py) const {
   camera.ray(px, py, o, d);
   std::vector<bool> visible;
   for (const OrganStyle& s : styles) visible.push_back(s.visible);
-  return bvh_.intersect(o, d, visible);
+  return bvh_.intersect(o, d, visible, slice.clip());
 }
 
 void Viewer::frame_all() {
@@ -100,9 +100,15 @@ void Viewer::begin() {
 void Viewer::end() {
   renderer_->begin_frame(cues, camera.width, camera.height);
   renderer_->draw_cues(camera, cues);
+  renderer_->set_slice(slice);
   renderer_->draw_organs(camera, styles);
+  renderer_->draw_slice(camera, slice);
+  // Overlays (tool, force arrow) on top: the tissue pulled toward the hand would hide them.
+  renderer_->set_depth_test(false);
   renderer_->draw_lines(camera, lines);
-  ImDrawList* fg = ImGui::GetForegroundDrawList();
+  renderer_->set_depth_test(true);
+  // Labels under the ImGui windows (help, panel), over the 3-D view.
+  ImDrawList* fg = ImGui::GetBackgroundDrawList();
   auto label = [&](const Eigen::Vector3f& p, const std::string& text, ImU32 col) {
     float x, y;
     if (!camera.project(p, x, y)) return;
@@ -113,7 +119,7 @@ void Viewer::end() {
   };
   for (size_t v = 0; v < styles.size(); ++v) {
     if (!styles[v].visible) continue;
-    if (labeled[v] || static_cast<int>(v) == hovered)
+    if (labeled[v] || (hover_names && static_cast<int>(v) == hovered))
       label(centroids_[v], scene_.name(static_cast<int>(v)), IM_COL32(255, 255, 255, 255));
   }
   for (const auto& [p, text] : texts) label(p, text, IM_COL32(255, 230, 120, 255));
@@ -131,9 +137,11 @@ void Viewer::end() {
       ImGui::PopStyleColor();
     }
     if (!caption.text.empty()) ImGui::TextWrapped("%s", caption.text.c_str());
-    if (!caption.status.empty())
-      ImGui::TextColored(caption.ok ? ImVec4(0.4f, 1.0f, 0.4f, 1.0f) : ImVec4(1.0f, 0.45f, 0.4f, 1.0f), "%s",
-                         caption.status.c_str());
+    if (!caption.status.empty()) {
+      ImGui::PushStyleColor(ImGuiCol_Text, caption.ok ? ImVec4(0.4f, 1.0f, 0.4f, 1.0f) : ImVec4(1.0f, 0.45f, 0.4f, 1.0f));
+      ImGui::TextWrapped("%s", caption.status.c_str());
+      ImGui::PopStyleColor();
+    }
     ImGui::End();
   }
   ImGui::Render();

@@ -45,7 +45,13 @@ TEST_P(LessonRun, PlaysHeadlessAndReports) {
     }
   }
   EXPECT_NE(reasons.find(c.reason), std::string::npos) << reasons;
+  // The end screen and the score.
+  EXPECT_TRUE(std::filesystem::exists(out + "/end.png"));
+  EXPECT_EQ(j.at("score").at("tasks").get<int>(), lesson.task_count());
+  EXPECT_EQ(j.at("score").at("passed").get<int>() == lesson.task_count(), c.passes);
 }
+
+
 
 INSTANTIATE_TEST_SUITE_P(
     Shipped, LessonRun,
@@ -54,8 +60,32 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{"organ_quiz", "pass", true, "picked stomach"},
                       Case{"organ_quiz", "fail", false, "picked liver, expected stomach"},
                       Case{"kidney_anchor", "pass", true, "reached"},
-                      Case{"kidney_anchor", "fail", false, "pulled too little"}),
+                      Case{"kidney_anchor", "fail", false, "pulled too little"},
+                      Case{"sectional_anatomy", "pass", true, "picked kidney_right"},
+                      Case{"sectional_anatomy", "fail", false, "answered Liver, the answer is Stomach"},
+                      Case{"kidney_sections", "pass", true, "answered Right kidney"},
+                      Case{"kidney_sections", "fail", false, "picked kidney_right, expected kidney_left"},
+                      Case{"stomach_pull", "pass", true, "reached"},
+                      Case{"stomach_pull", "fail", false, "pulled too hard"}),
     [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.lesson) + "_" + i.param.script; });
+
+const char* kCovered[] = {"liver_mobility", "organ_quiz", "kidney_anchor", "sectional_anatomy", "kidney_sections",
+                          "stomach_pull"};
+
+TEST(LessonRunCoverage, EveryShippedLessonHasPassAndFailCases) {
+  int n = 0;
+  for (const auto& e : std::filesystem::directory_iterator(test::lessons_dir())) {
+    if (e.path().extension() != ".yaml") continue;
+    const std::string name = e.path().stem().string();
+    ++n;
+    bool covered = false;
+    for (const char* c : kCovered) covered = covered || name == c;
+    EXPECT_TRUE(covered) << name << " has no LessonRun case";
+    for (const char* k : {"pass", "fail"})
+      EXPECT_TRUE(std::filesystem::exists(test::lessons_dir() + "/scripts/" + name + "." + k + ".yaml")) << name << "." << k;
+  }
+  EXPECT_GE(n, 6);
+}
 
 }  // namespace
 }  // namespace softatlas::app

@@ -2,12 +2,15 @@
 // FILE:LINE:COLUMN: message, pointing at the offending node.
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 #include <regex>
+#include <sstream>
 
 #include "softatlas/app/lesson.hpp"
 #include "softatlas/sim/error.hpp"
 #include "test_util.hpp"
+#include "../../atlas_app/src/yaml_check.hpp"
 
 namespace softatlas::app {
 namespace {
@@ -114,8 +117,79 @@ TEST(Lesson, YamlSyntaxErrorHasLineAndColumn) {
   }
 }
 
+// Every lesson in tests/atlas_app/bad_lessons (schema/ and yaml/) fails with exactly the errors its
+// `# expect: LINE:COLUMN text` comments list, in file order, from one load.
+TEST(Lesson, BadLessonsReportEveryErrorInFileOrder) {
+  const std::string root = std::string(SOFTATLAS_SOURCE_DIR) + "/tests/atlas_app/bad_lessons";
+  int files = 0;
+  for (const std::string sub : {"schema", "yaml"})
+    for (const auto& entry : std::filesystem::directory_iterator(root + "/" + sub)) {
+      const std::string path = entry.path().string();
+      std::ifstream in(path);
+      std::vector<std::string> expected;
+      for (std::string line; std::getline(in, line);)
+        if (line.rfind("# expect: ", 0) == 0) expected.push_back(line.substr(10));
+      ASSERT_FALSE(expected.empty()) << path << " has no '# expect:' lines";
+      ++files;
+      try {
+        load_lesson(path);
+        ADD_FAILURE() << path << ": no error";
+      } catch (const yamlcheck::CheckErrors& e) {
+        const std::vector<std::string> got = e.lines();
+        ASSERT_EQ(got.size(), expected.size()) << path << ":\n" << e.what();
+        for (size_t i = 0; i < got.size(); ++i) {
+          const std::string want = expected[i];
+          const size_t sp = want.find(' ');
+          const std::string at = path + ":" + want.substr(0, sp) + ": ";
+          EXPECT_EQ(got[i].rfind(at, 0), 0u) << "expected at " << at << "\n got " << got[i];
+          EXPECT_NE(got[i].find(want.substr(sp + 1)), std::string::npos) << "expected '" << want << "'\n got " << got[i];
+        }
+      } catch (const InputError& e) {
+        ADD_FAILURE() << path << ": not a collected error: " << e.what();
+      }
+    }
+  EXPECT_GE(files, 6);
+}
+
+TEST(Lesson, StrictYaml) {
+  // lesson: 42 is a number, not a title; a quoted number is text, not a number.
+  expect_error("number_title", replace(valid_lesson(), "lesson: Test lesson", "lesson: 42"), 1, 9,
+               "'lesson' must be text, got the number 42");
+  expect_error("quoted_number", replace(valid_lesson(), "dt_s: 0.001", "dt_s: \"0.001\""), 6, 19,
+               "'dt_s' must be a number, got the text");
+  expect_error("duplicate", replace(valid_lesson(), "pick: {organ: kidney_left}", "pick: {organ: kidney_left, organ: liver}"),
+               10, 32, "duplicate key 'organ' in pick (first given on line 10)");
+  // An unterminated quote is reported where it opens, not where yaml-cpp stops.
+  expect_error("unterminated", replace(valid_lesson(), "say: hello", "say: \"hello"), 8, 10, "unterminated quote");
+  // Quotes inside words, escaped quotes and block scalars are fine.
+  const Lesson ok = load_lesson(write("quotes_ok", replace(valid_lesson(), "  - say: hello\n",
+                                                             "  - say: the patient's \"right\"\n"
+                                                             "  - say: 'it''s \"fine\"'\n"
+                                                             "  - say: \"a \\\" b\"\n"
+                                                             "  - say: >\n      a long \"text\n      over lines\n")));
+  ASSERT_EQ(ok.steps.size(), 6u);
+  EXPECT_EQ(ok.steps[0].text, "the patient's \"right\"");
+  EXPECT_EQ(ok.steps[1].text, "it's \"fine\"");
+  EXPECT_EQ(ok.steps[3].text, "a long \"text over lines\n");
+}
+
+TEST(Lesson, QuestionAndSliceSteps) {
+  const Lesson l = load_lesson(write("question", valid_lesson() +
+                                                     "  - question: {ask: \"Which?\", choices: [Liver, Stomach], answer: Stomach}\n"
+                                                     "  - slice: {plane: coronal, at_mm: 120}\n"));
+  ASSERT_EQ(l.steps.size(), 5u);
+  EXPECT_EQ(l.steps[3].kind, StepKind::question);
+  EXPECT_EQ(l.steps[3].question.answer, 1);
+  EXPECT_EQ(l.task_count(), 3);
+  EXPECT_EQ(l.steps[4].kind, StepKind::slice);
+  EXPECT_EQ(slice_plane(l.steps[4].slice).axis, 1);
+  EXPECT_FLOAT_EQ(slice_plane(l.steps[4].slice).at_mm, 120.0f);
+  EXPECT_NE(question_text(l.steps[3].question, "Liver").find("1) Liver   <- your answer"), std::string::npos);
+}
+
 TEST(Lesson, ShippedLessonsAndScriptsValidate) {
-  for (const std::string name : {"liver_mobility", "organ_quiz", "kidney_anchor"}) {
+  for (const std::string name : {"liver_mobility", "organ_quiz", "kidney_anchor", "sectional_anatomy", "kidney_sections",
+                                 "stomach_pull"}) {
     const Lesson l = load_lesson(test::lessons_dir() + "/" + name + ".yaml");
     for (const std::string kind : {"pass", "fail"}) {
       const DeviceScript s = load_device_script(test::lessons_dir() + "/scripts/" + name + "." + kind + ".yaml");
@@ -146,6 +220,24 @@ TEST(DeviceScript, ErrorsPointAtTheNode) {
   const Lesson l = load_lesson(test::lessons_dir() + "/organ_quiz.yaml");
   const DeviceScript wrong = load_device_script(test::lessons_dir() + "/scripts/kidney_anchor.pass.yaml");
   EXPECT_THROW(check_script_matches(wrong, l), InputError);
+  // Every mismatch, in the script's order, each naming both tasks.
+  const std::string path = dir + "/mismatch.yaml";
+  std::ofstream(path) << "device: scripted\ntasks:\n  - wait: {}\n  - pull: {timeline: [{t_s: 0, offset_mm: [0, 0, 0]}]}\n"
+                         "  - pick: {click_mm: [0, 0, 0]}\n";
+  try {
+    check_script_matches(load_device_script(path), l);
+    FAIL();
+  } catch (const InputError& e) {
+    const std::string w = e.what();
+    const size_t a = w.find(path + ":3:5: task 1 is 'wait' but the lesson's task 1");
+    const size_t b = w.find(path + ":4:5: task 2 is 'pull' but the lesson's task 2");
+    const size_t c = w.find(path + ":5:5: the script has 3 tasks but lesson");
+    EXPECT_NE(a, std::string::npos) << w;
+    EXPECT_NE(b, std::string::npos) << w;
+    EXPECT_NE(c, std::string::npos) << w;
+    EXPECT_TRUE(a < b && b < c) << w;
+    EXPECT_NE(w.find("(1 pick, 2 pick)"), std::string::npos) << w;
+  }
 }
 
 }  // namespace

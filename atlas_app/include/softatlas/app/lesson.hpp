@@ -1,6 +1,7 @@
 // Lessons (YAML, docs/lessons.md) and device scripts: parsed and validated once, on load.
-// Every error is an InputError whose `where` is FILE:LINE:COLUMN (from yaml-cpp's marks,
-// 1-based) and whose message says what was expected.
+// Every error is reported as FILE:LINE:COLUMN: message (from yaml-cpp's marks, 1-based) saying
+// what was expected; a file's errors are collected and thrown together, in file order, as one
+// InputError (yamlcheck::CheckErrors: what() holds one line per error).
 #pragma once
 
 #include <Eigen/Core>
@@ -8,14 +9,17 @@
 #include <vector>
 
 #include "softatlas/app/haptics.hpp"
+#include "softatlas/app/renderer.hpp"
 #include "softatlas/app/scene.hpp"
 #include "softatlas/io/organ_set.hpp"
 
 namespace softatlas::app {
 
-enum class StepKind { say, camera, highlight, hide, show, isolate, label, pull, pick, wait };
+enum class StepKind { say, camera, highlight, hide, show, isolate, label, pull, pick, wait, question, slice };
 const char* to_string(StepKind kind);
-inline bool is_task(StepKind k) { return k == StepKind::pull || k == StepKind::pick || k == StepKind::wait; }
+inline bool is_task(StepKind k) {
+  return k == StepKind::pull || k == StepKind::pick || k == StepKind::wait || k == StepKind::question;
+}
 
 struct CameraSpec {
   std::string view;          // anterior | posterior | left | right | superior | inferior | ""
@@ -35,6 +39,19 @@ struct PullTask {
   double time_limit_s = 3.0;
 };
 
+// Multiple choice: the student (or the device script's `answer`) picks one of `choices`.
+struct QuestionTask {
+  std::string ask;
+  std::vector<std::string> choices;
+  int answer = 0;            // index into choices
+};
+
+// A cut plane through the scene (sectional anatomy): axial (z = at_mm), coronal (y), sagittal (x).
+struct SliceSpec {
+  std::string plane;         // axial | coronal | sagittal
+  double at_mm = 0.0;
+};
+
 struct LessonStep {
   StepKind kind = StepKind::say;
   std::string where;         // FILE:LINE:COLUMN of the step
@@ -44,6 +61,8 @@ struct LessonStep {
   CameraSpec camera;
   PullTask pull;
   double wait_s = 0.0;
+  QuestionTask question;
+  SliceSpec slice;
 };
 
 struct Lesson {
@@ -57,10 +76,19 @@ struct Lesson {
   int task_count() const;
 };
 
-// Reads, validates and loads the organ set of a lesson. Throws InputError on the first problem.
+// Reads, validates and loads the organ set of a lesson. Throws InputError (yamlcheck::CheckErrors)
+// with every problem found, in file order.
 Lesson load_lesson(const std::string& path);
 
-// Device script: one action per task (pull / pick / wait) of the lesson, in order.
+// The caption text of a question: the question, then its choices numbered 1.. (the chosen one,
+// if any, marked).
+std::string question_text(const QuestionTask& q, const std::string& chosen);
+// The renderer's plane for a slice step.
+SlicePlane slice_plane(const SliceSpec& s);
+// `--slice PLANE:MM` (axial:1100, coronal:120, sagittal:-30); "" = no slice. Throws InputError.
+SlicePlane parse_slice_option(const std::string& text);
+
+// Device script: one action per task (pull / pick / wait / answer) of the lesson, in order.
 struct ScriptAction {
   StepKind kind = StepKind::wait;
   std::string where;
@@ -70,6 +98,7 @@ struct ScriptAction {
   Eigen::Vector3d click_mm{0, 0, 0};   // pick: the world point the user clicks on
   bool has_click_px = false;
   Eigen::Vector2d click_px{0, 0};
+  std::string choice;                  // answer: the chosen text
 };
 
 struct DeviceScript {
@@ -80,7 +109,8 @@ struct DeviceScript {
 };
 
 DeviceScript load_device_script(const std::string& path);
-// The script's actions must match the lesson's tasks one to one (kind by kind).
+// The script's actions must match the lesson's tasks one to one (kind by kind); every mismatch is
+// reported, in the script's file order, each naming both tasks.
 void check_script_matches(const DeviceScript& script, const Lesson& lesson);
 
 }  // namespace softatlas::app

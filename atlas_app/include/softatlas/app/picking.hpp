@@ -25,9 +25,11 @@ class PickBvh {
   int add_mesh(const std::vector<int32_t>& faces, size_t nvert);
   void build(const std::vector<const float*>& positions);   // #V*3 per organ
   void refit(const std::vector<const float*>& positions);   // same topology, new positions
-  // Closest hit along the ray; organs with visible[o] == false are skipped (empty: all).
+  // Closest hit along the ray; organs with visible[o] == false are skipped (empty: all), and so
+  // are points p cut away by a slice plane (clip.xyz . p + clip.w > 0; the default cuts nothing).
   PickHit intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& dir,
-                    const std::vector<bool>& visible = {}) const;
+                    const std::vector<bool>& visible = {},
+                    const Eigen::Vector4f& clip = Eigen::Vector4f(0, 0, 0, -1)) const;
   size_t triangle_count() const { return tri_organ_.size(); }
 
  private:

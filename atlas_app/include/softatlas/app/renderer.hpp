@@ -38,6 +38,19 @@ struct Line {
   std::array<float, 4> color;
 };
 
+// Sectional view: the organs are cut at axis = at_mm (0 sagittal x, 1 coronal y, 2 axial z, RAS
+// mm); the part above the plane (keep_below) or below it is removed, the cut shows the inside.
+struct SlicePlane {
+  int axis = -1;             // -1: no slice
+  float at_mm = 0.0f;
+  bool keep_below = true;
+  bool active() const { return axis >= 0 && axis < 3; }
+  Eigen::Vector4f clip() const;  // (n, d): points with n.x + d > 0 are cut away
+};
+
+// An arrow from a to b (shaft and a four-line head) appended to lines.
+void add_arrow(std::vector<Line>& lines, const Eigen::Vector3f& a, const Eigen::Vector3f& b, const std::array<float, 4>& color);
+
 class Renderer {
  public:
   explicit Renderer(const GlContext& context);
@@ -60,6 +73,10 @@ class Renderer {
   void draw_organs(const Camera& camera, const std::vector<OrganStyle>& styles);
   void draw_cues(const Camera& camera, const Cues& cues);
   void draw_lines(const Camera& camera, const std::vector<Line>& lines);
+  // The organs are cut by this plane in draw_organs; draw_slice draws the plane itself.
+  void set_slice(const SlicePlane& plane) { slice_ = plane; }
+  void set_depth_test(bool on);
+  void draw_slice(const Camera& camera, const SlicePlane& plane);
   // Dear ImGui draw lists (panels, labels), drawn last, with our own GL 3.3 code: Debian ships
   // imgui_impl_opengl3 only as an example source whose loader cannot see OSMesa.
   void draw_imgui(const ImDrawData* data);
@@ -81,6 +98,7 @@ class Renderer {
   uint32_t line_vao_ = 0, line_vbo_ = 0;
   uint32_t imgui_vao_ = 0, imgui_vbo_ = 0, imgui_ebo_ = 0, font_texture_ = 0;
   Eigen::Vector3f lo_{-100, -100, -100}, hi_{100, 100, 100};
+  SlicePlane slice_;
   int width_ = 0, height_ = 0;
 };
 

@@ -56,7 +56,9 @@ class Viewer {
   std::vector<Line> lines;         // overlay (tool, force arrow)
   std::vector<std::pair<Eigen::Vector3f, std::string>> texts;  // world-anchored notes
   Caption caption;
+  SlicePlane slice;                // sectional view (lesson `slice` steps, --slice)
   int hovered = -1;                // view organ under the mouse (window)
+  bool hover_names = true;         // false during pick steps: the name would give the answer
   GlContext& context() { return context_; }
   Renderer& renderer() { return *renderer_; }
   ImGuiContext* imgui() { return imgui_; }
