@@ -28,7 +28,7 @@ constexpr const char* kUsage = R"(usage: softatlas <command> [options]
   build --mesh FILE [...] -o SET        organ set from surface meshes
   segment CT --seeds S.yaml -o LABELS.nii.gz
   check SET                             validate an organ set, print its quality report
-  export SET -o atlas.glb               glTF 2.0 (binary)
+  export SET -o atlas.glb|atlas.gltf    glTF 2.0 (binary, or JSON + .bin)
   view SET|LESSON [--headless --frames N --screenshot out.png]
   lesson check LESSON                   validate only (FILE:LINE:COLUMN: message)
   lesson run LESSON --device SCRIPT --out DIR

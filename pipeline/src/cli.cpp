@@ -194,10 +194,10 @@ int cmd_check(const std::vector<std::string>& args) {
 }
 
 int cmd_export(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas export: organ set -> binary glTF 2.0", "softatlas export"};
+  CLI::App app{"softatlas export: organ set -> glTF 2.0 (.glb binary, .gltf JSON + .bin)", "softatlas export"};
   std::string folder, output;
   app.add_option("set", folder, "organ-set folder")->required();
-  app.add_option("-o,--output", output, "output .glb")->required();
+  app.add_option("-o,--output", output, "output .glb or .gltf")->required();
   if (int rc = parse(app, args, 1); rc >= 0) return rc;
   export_gltf(folder, output);
   std::fprintf(stderr, "[softatlas export] wrote %s\n", output.c_str());
