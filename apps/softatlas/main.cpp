@@ -1,9 +1,15 @@
 // softatlas: one command, subcommands like git. Thin: it parses the first words and hands the
 // rest to the library that owns the subcommand. Bad input anywhere surfaces as InputError and
 // becomes one line on stderr and exit status 1.
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <cstdio>
 #include <exception>
 #include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -46,8 +52,39 @@ int unavailable(const std::string& what, const char* option) {
   return 2;
 }
 
+// Runs f with stdout sent to `path` (the JSON a subcommand prints goes to a file, not the
+// terminal); returns f's status.
+template <class F>
+int stdout_to(const std::string& path, F&& f) {
+  std::fflush(stdout);
+  const int saved = dup(1);
+  const int fd = open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  if (fd < 0 || saved < 0) throw softatlas::InputError(path, "cannot write the demo's output");
+  dup2(fd, 1);
+  close(fd);
+  int rc = 1;
+  try {
+    rc = f();
+  } catch (...) {
+    std::fflush(stdout);
+    dup2(saved, 1);
+    close(saved);
+    throw;
+  }
+  std::fflush(stdout);
+  dup2(saved, 1);
+  close(saved);
+  return rc;
+}
+
+nlohmann::json read_json(const std::string& path) {
+  std::ifstream f(path);
+  nlohmann::json j = nlohmann::json::parse(f, nullptr, false);
+  return j.is_discarded() ? nlohmann::json::object() : j;
+}
+
 // `softatlas demo [--out DIR]`: the main job on the embedded data. Each part that is built runs;
-// the paths of its results are printed at the end.
+// its progress goes to stderr, its JSON to files in DIR, and a short summary to stdout.
 int demo(const std::vector<std::string>& args) {
   std::string out = "out/demo";
   for (size_t i = 1; i < args.size(); ++i) {
@@ -55,20 +92,34 @@ int demo(const std::vector<std::string>& args) {
       out = args[++i];
     } else if (args[i] == "-h" || args[i] == "--help") {
       std::puts("usage: softatlas demo [--out DIR]\n  builds the embedded sample CT into an organ set, "
-                "exports glTF, pulls a liver with every physics model and plays a lesson headless");
+                "exports glTF, pulls a liver with every physics model and plays a lesson headless;\n"
+                "  prints a short summary, writes every JSON report under DIR");
       return 0;
     } else {
       throw softatlas::InputError(args[i], "unknown option (expected --out DIR)");
     }
   }
+  const auto t0 = std::chrono::steady_clock::now();
   const std::string data = SOFTATLAS_DATA_DIR;
-  std::vector<std::string> results;
+  std::vector<std::string> summary;
+  char line[512];
   std::error_code ec;
-  std::filesystem::create_directories(out, ec);
+  std::filesystem::create_directories(out + "/logs", ec);
   std::fprintf(stderr, "== 1/4 physics: pull the paper-000 liver with every model\n");
-  int rc = softatlas::bench::cli_main({"sim", "demo", "--out", out + "/physics"});
+  int rc = stdout_to(out + "/logs/sim_demo.txt", [&] { return softatlas::bench::cli_main({"sim", "demo", "--out", out + "/physics"}); });
   if (rc != 0) return rc;
-  results.push_back(out + "/physics/deformation.svg (picture), results.json (feedback force, volume change)");
+  {
+    const nlohmann::json j = read_json(out + "/physics/results.json");
+    std::string models;
+    for (const auto& r : j.value("runs", nlohmann::json::array()))
+      if (r.contains("model") && r.contains("volume_change_pct")) {
+        std::snprintf(line, sizeof line, "%s%s %+.1f %%", models.empty() ? "" : ", ", r["model"].get<std::string>().c_str(),
+                      r["volume_change_pct"].get<double>());
+        models += line;
+      }
+    summary.push_back("physics   liver pulled 20 mm, volume change per model: " + models);
+    summary.push_back("          -> " + out + "/physics/results.json, deformation.svg");
+  }
 #ifdef SOFTATLAS_HAVE_PIPELINE
   std::fprintf(stderr, "== 2/4 pipeline: organ set from the embedded CT (data/sample)\n");
   const std::string set = out + "/organ_set";
@@ -78,23 +129,44 @@ int demo(const std::vector<std::string>& args) {
                                       "--labels", "pulmonary_artery=" + data + "/sample/pulmonary_artery.nii.gz",
                                       "-o", set});
   if (rc != 0) return rc;
-  rc = softatlas::pipeline::cli_main({"check", set});
+  rc = stdout_to(out + "/check.json", [&] { return softatlas::pipeline::cli_main({"check", set}); });
   if (rc != 0) return rc;
   std::fprintf(stderr, "== 3/4 export: glTF 2.0\n");
   rc = softatlas::pipeline::cli_main({"export", set, "-o", out + "/atlas.glb"});
   if (rc != 0) return rc;
-  results.push_back(set + "/ (atlas.yaml, organs/*.ply, connections.csv, quality.json)");
-  results.push_back(out + "/atlas.glb (binary glTF for other VR engines)");
+  {
+    const nlohmann::json q = read_json(set + "/quality.json");
+    std::string organs;
+    const nlohmann::json list = q.contains("organs") ? q["organs"] : nlohmann::json::object();
+    for (const auto& [name, o] : list.items()) {
+      std::snprintf(line, sizeof line, "%s%s %d faces %s, %.0f mL", organs.empty() ? "" : ", ", name.c_str(), o.value("faces", 0),
+                    o.value("closed", false) ? "closed" : "OPEN", o.value("volume_mm3", 0.0) * 1e-3);
+      organs += line;
+    }
+    summary.push_back("pipeline  organ set from the sample CT: " + (organs.empty() ? std::string("see check.json") : organs));
+    summary.push_back("          -> " + set + "/, " + out + "/check.json");
+    summary.push_back("export    " + out + "/atlas.glb (glTF 2.0: anterior +Z, superior +Y, centred)");
+  }
 #endif
 #ifdef SOFTATLAS_HAVE_APP
   std::fprintf(stderr, "== 4/4 lesson: liver_mobility played headless with its scripted device\n");
-  rc = softatlas::app::cli_main({"lesson", "run", data + "/lessons/liver_mobility.yaml", "--device",
-                                 data + "/lessons/scripts/liver_mobility.pass.yaml", "--out", out + "/lesson"});
+  rc = stdout_to(out + "/logs/lesson.json", [&] {
+    return softatlas::app::cli_main({"lesson", "run", data + "/lessons/liver_mobility.yaml", "--device",
+                                     data + "/lessons/scripts/liver_mobility.pass.yaml", "--out", out + "/lesson"});
+  });
   if (rc != 0) return rc;
-  results.push_back(out + "/lesson/ (one PNG per step, report.json)");
+  {
+    const nlohmann::json r = read_json(out + "/lesson/report.json");
+    const nlohmann::json score = r.value("score", nlohmann::json::object());
+    std::snprintf(line, sizeof line, "lesson    %s: %s, %d of %d tasks", r.value("lesson", std::string("?")).c_str(),
+                  r.value("passed", false) ? "passed" : "failed", score.value("passed", 0), score.value("tasks", 0));
+    summary.push_back(line);
+    summary.push_back("          -> " + out + "/lesson/ (step_NN_*.png, end.png, report.json)");
+  }
 #endif
-  std::printf("\nSoftAtlas demo results:\n");
-  for (const std::string& r : results) std::printf("  %s\n", r.c_str());
+  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("SoftAtlas demo: done in %.0f s (JSON reports in %s, subcommand output in %s/logs)\n", s, out.c_str(), out.c_str());
+  for (const std::string& l : summary) std::printf("  %s\n", l.c_str());
   return 0;
 }
 
