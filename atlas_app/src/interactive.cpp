@@ -3,6 +3,7 @@
 #include <GLFW/glfw3.h>
 #include <imgui.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -396,17 +397,33 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
       ImGui::SetNextWindowSize(ImVec2(320, 520), ImGuiCond_FirstUseEver);
       ImGui::Begin("SoftAtlas");
       if (ImGui::CollapsingHeader("Organs", ImGuiTreeNodeFlags_DefaultOpen)) {
-        for (size_t v = 0; v < viewer->styles.size(); ++v) {
-          ImGui::PushID(static_cast<int>(v));
-          bool vis = viewer->styles[v].visible;
-          if (ImGui::Checkbox(scene->name(static_cast<int>(v)).c_str(), &vis)) viewer->styles[v].visible = vis;
-          ImGui::SameLine(170);
-          if (ImGui::SmallButton("isolate"))
-            for (size_t k = 0; k < viewer->styles.size(); ++k) viewer->styles[k].visible = k == v;
-          ImGui::SameLine();
-          bool lab = viewer->labeled[v];
-          if (ImGui::Checkbox("label", &lab)) viewer->labeled[v] = lab;
-          ImGui::PopID();
+        // Grouped by body system (digestive, urinary, ...), display names; hover a row for the
+        // organ set's name and FMA id.
+        std::vector<std::string> systems;
+        for (size_t v = 0; v < viewer->styles.size(); ++v)
+          if (std::find(systems.begin(), systems.end(), scene->system(static_cast<int>(v))) == systems.end())
+            systems.push_back(scene->system(static_cast<int>(v)));
+        for (const std::string& sys : systems) {
+          if (!ImGui::TreeNodeEx(sys.c_str(), ImGuiTreeNodeFlags_DefaultOpen)) continue;
+          for (size_t v = 0; v < viewer->styles.size(); ++v) {
+            if (scene->system(static_cast<int>(v)) != sys) continue;
+            ImGui::PushID(static_cast<int>(v));
+            bool vis = viewer->styles[v].visible;
+            if (ImGui::Checkbox(scene->display_name(static_cast<int>(v)).c_str(), &vis)) viewer->styles[v].visible = vis;
+            if (ImGui::IsItemHovered()) {
+              const io::OrganEntry* e = set.find(scene->name(static_cast<int>(v)));
+              ImGui::SetTooltip("%s  (label %d, %s)", scene->name(static_cast<int>(v)).c_str(), e ? e->label : 0,
+                                e && !e->fma.empty() ? e->fma.c_str() : "no FMA id");
+            }
+            ImGui::SameLine(190);
+            if (ImGui::SmallButton("isolate"))
+              for (size_t k = 0; k < viewer->styles.size(); ++k) viewer->styles[k].visible = k == v;
+            ImGui::SameLine();
+            bool lab = viewer->labeled[v];
+            if (ImGui::Checkbox("label", &lab)) viewer->labeled[v] = lab;
+            ImGui::PopID();
+          }
+          ImGui::TreePop();
         }
         if (ImGui::Button("show all")) for (auto& s : viewer->styles) s.visible = true;
       }

@@ -1,6 +1,7 @@
 #include "softatlas/app/scene.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <limits>
 
@@ -102,6 +103,38 @@ AtlasScene::AtlasScene(io::OrganSet set, std::vector<std::string> shown,
     local_to_global_.push_back(std::move(l2g));
   }
 }
+
+OrganInfo organ_info(const std::string& n) {
+  // TotalSegmentator class names (ct/totalsegmentator_label_table.tsv) -> FMA preferred English
+  // names and the system an anatomy atlas files them under. The organs of the demo atlases and
+  // of the sample CTs, plus their close neighbours.
+  static const std::pair<const char*, OrganInfo> table[] = {
+      {"liver", {"Liver", "digestive"}},           {"stomach", {"Stomach", "digestive"}},
+      {"pancreas", {"Pancreas", "digestive"}},     {"gallbladder", {"Gallbladder", "digestive"}},
+      {"esophagus", {"Esophagus", "digestive"}},   {"duodenum", {"Duodenum", "digestive"}},
+      {"colon", {"Colon", "digestive"}},           {"small_bowel", {"Small intestine", "digestive"}},
+      {"spleen", {"Spleen", "lymphatic"}},         {"kidney_right", {"Right kidney", "urinary"}},
+      {"kidney_left", {"Left kidney", "urinary"}}, {"urinary_bladder", {"Urinary bladder", "urinary"}},
+      {"adrenal_gland_right", {"Right suprarenal gland", "endocrine"}},
+      {"adrenal_gland_left", {"Left suprarenal gland", "endocrine"}},
+      {"trachea", {"Trachea", "respiratory"}},     {"heart", {"Heart", "cardiovascular"}},
+      {"aorta", {"Aorta", "cardiovascular"}},      {"pulmonary_artery", {"Pulmonary trunk", "cardiovascular"}},
+      {"inferior_vena_cava", {"Inferior vena cava", "cardiovascular"}},
+      {"portal_vein_and_splenic_vein", {"Portal and splenic vein", "cardiovascular"}},
+      {"spinal_cord", {"Spinal cord", "nervous"}}, {"vertebrae_L5", {"Fifth lumbar vertebra", "skeletal"}},
+      {"vertebrae_L1", {"First lumbar vertebra", "skeletal"}}, {"sacrum", {"Sacrum", "skeletal"}},
+      {"hip_left", {"Left hip bone", "skeletal"}}, {"hip_right", {"Right hip bone", "skeletal"}},
+  };
+  for (const auto& [key, info] : table)
+    if (n == key) return info;
+  std::string d = n;
+  std::replace(d.begin(), d.end(), '_', ' ');
+  if (!d.empty()) d[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(d[0])));
+  return {d, "other"};
+}
+
+std::string AtlasScene::display_name(int v) const { return organ_info(name(v)).display; }
+std::string AtlasScene::system(int v) const { return organ_info(name(v)).system; }
 
 const std::string& AtlasScene::name(int v) const {
   return set_.organs[static_cast<size_t>(view_organs_[static_cast<size_t>(v)])].name;

@@ -4,6 +4,7 @@
 #include <backends/imgui_impl_glfw.h>
 
 #include <algorithm>
+#include <cmath>
 
 namespace softatlas::app {
 
@@ -117,10 +118,60 @@ void Viewer::end() {
     fg->AddRectFilled(a, b, IM_COL32(0, 0, 0, 150), 3.0f);
     fg->AddText(ImVec2(a.x + 4, a.y + 2), col, text.c_str());
   };
+  // Labels people read (display names) with leader lines: each label is pushed out from the
+  // labelled organs' common centre, 60 px beyond its organ's centroid, then moved along y until
+  // it overlaps no label placed before it; a line joins it to the centroid.
+  struct Tag {
+    ImVec2 anchor, pos, size;
+    std::string text;
+  };
+  std::vector<Tag> tags;
   for (size_t v = 0; v < styles.size(); ++v) {
     if (!styles[v].visible) continue;
-    if (labeled[v] || (hover_names && static_cast<int>(v) == hovered))
-      label(centroids_[v], scene_.name(static_cast<int>(v)), IM_COL32(255, 255, 255, 255));
+    const std::string text = scene_.display_name(static_cast<int>(v));
+    if (labeled[v]) {
+      float x, y;
+      if (camera.project(centroids_[v], x, y)) tags.push_back({ImVec2(x, y), ImVec2(x, y), ImGui::CalcTextSize(text.c_str()), text});
+    } else if (hover_names && static_cast<int>(v) == hovered) {
+      label(centroids_[v], text, IM_COL32(255, 255, 255, 255));
+    }
+  }
+  if (!tags.empty()) {
+    ImVec2 c(0, 0);
+    for (const Tag& t : tags) c = ImVec2(c.x + t.anchor.x / tags.size(), c.y + t.anchor.y / tags.size());
+    for (Tag& t : tags) {
+      float dx = t.anchor.x - c.x, dy = t.anchor.y - c.y;
+      const float len = std::sqrt(dx * dx + dy * dy);
+      if (len < 1.0f) dx = 0, dy = -1;
+      else dx /= len, dy /= len;
+      t.pos = ImVec2(t.anchor.x + 60.0f * dx - 0.5f * t.size.x, t.anchor.y + 60.0f * dy - 0.5f * t.size.y);
+    }
+    std::sort(tags.begin(), tags.end(), [](const Tag& a, const Tag& b) { return a.pos.y < b.pos.y; });
+    std::vector<Tag*> placed;
+    const float pad = 6.0f;
+    for (Tag& t : tags) {
+      for (int guard = 0; guard < 64; ++guard) {
+        bool hit = false;
+        for (const Tag* o : placed)
+          if (t.pos.x < o->pos.x + o->size.x + 2 * pad && o->pos.x < t.pos.x + t.size.x + 2 * pad &&
+              t.pos.y < o->pos.y + o->size.y + pad && o->pos.y < t.pos.y + t.size.y + pad) {
+            t.pos.y = o->pos.y + o->size.y + pad;
+            hit = true;
+          }
+        if (!hit) break;
+      }
+      t.pos.x = std::clamp(t.pos.x, 4.0f, static_cast<float>(camera.width) - t.size.x - 12.0f);
+      t.pos.y = std::clamp(t.pos.y, 4.0f, static_cast<float>(camera.height) - t.size.y - 8.0f);
+      placed.push_back(&t);
+    }
+    for (const Tag& t : tags) {
+      const ImVec2 a(t.pos.x - 4, t.pos.y - 2), b(t.pos.x + t.size.x + 4, t.pos.y + t.size.y + 2);
+      const ImVec2 end(std::clamp(t.anchor.x, a.x, b.x), std::clamp(t.anchor.y, a.y, b.y));
+      fg->AddLine(t.anchor, end, IM_COL32(235, 235, 235, 200), 1.5f);
+      fg->AddCircleFilled(t.anchor, 3.0f, IM_COL32(255, 255, 255, 230));
+      fg->AddRectFilled(a, b, IM_COL32(0, 0, 0, 170), 3.0f);
+      fg->AddText(t.pos, IM_COL32(255, 255, 255, 255), t.text.c_str());
+    }
   }
   for (const auto& [p, text] : texts) label(p, text, IM_COL32(255, 230, 120, 255));
   if (!caption.title.empty() || !caption.text.empty() || !caption.status.empty()) {

@@ -64,3 +64,19 @@ TEST(Scene, RegionsAreThePatientsDirections) {
 
 }  // namespace
 }  // namespace softatlas::app
+
+namespace softatlas::app {
+namespace {
+
+TEST(OrganInfo, DisplayNamesAndSystems) {
+  EXPECT_EQ(organ_info("kidney_right").display, "Right kidney");
+  EXPECT_EQ(organ_info("kidney_right").system, "urinary");
+  EXPECT_EQ(organ_info("liver").system, "digestive");
+  EXPECT_EQ(organ_info("vertebrae_L5").system, "skeletal");
+  // Unknown names stay readable.
+  EXPECT_EQ(organ_info("left_thing_2").display, "Left thing 2");
+  EXPECT_EQ(organ_info("left_thing_2").system, "other");
+}
+
+}  // namespace
+}  // namespace softatlas::app

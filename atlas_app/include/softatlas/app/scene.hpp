@@ -36,6 +36,13 @@ sim::SceneDesc scene_from_organ_set(const io::OrganSet& set, const std::vector<s
                                     const std::vector<std::string>& context,
                                     const PhysicsSettings& physics);
 
+// Display name (English, the FMA preferred name where the organ set gives TotalSegmentator's
+// name) and body system of an organ; unknown names: "some_organ" -> "Some organ", system "other".
+struct OrganInfo {
+  std::string display, system;
+};
+OrganInfo organ_info(const std::string& totalsegmentator_name);
+
 class AtlasScene {
  public:
   AtlasScene(io::OrganSet set, std::vector<std::string> shown, std::vector<std::string> context,
@@ -45,6 +52,9 @@ class AtlasScene {
   // Organs drawn (shown + context), in the order of the set; their index is the "view index".
   const std::vector<int>& view_organs() const { return view_organs_; }
   const std::string& name(int view_index) const;
+  // What people read: "Right kidney", and the body system the organ panel groups it under.
+  std::string display_name(int view_index) const;
+  std::string system(int view_index) const;
   int view_index(const std::string& organ) const;  // -1 if not in the view
   bool is_context(int view_index) const { return context_[static_cast<size_t>(view_index)]; }
   // Compiled organ of a view organ, -1 if the core left it out (then it is drawn at rest).
