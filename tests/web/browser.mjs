@@ -60,17 +60,19 @@ export async function openPage(site, { xr = false, width = 1280, height = 720 } 
   const userDir = path.join(os.tmpdir(), `softatlas-chromium-${process.pid}-${Date.now()}`);
   mkdirSync(userDir, { recursive: true });
   const server = await serve(site);
-  const browser = await chromium.launch({
+  // A fresh profile (--user-data-dir) each run.
+  const browser = await chromium.launchPersistentContext(userDir, {
     executablePath: chromiumPath(),
     headless: true,
+    viewport: { width, height },
     args: ['--no-sandbox', '--disable-gpu', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
       '--ignore-gpu-blocklist', '--disable-background-networking', '--disable-component-update', '--disable-sync',
-      '--no-first-run', `--user-data-dir=${userDir}`,
+      '--no-first-run',
       // Frames as fast as the page can make them (fps() then measures the capacity; a headset's
       // compositor sets the real rate): no 60 Hz headless begin-frame cap, no vsync.
       '--disable-frame-rate-limit', '--disable-gpu-vsync'],
   });
-  const page = await browser.newPage({ viewport: { width, height } });
+  const page = browser.pages()[0] || await browser.newPage();
   const errors = [];
   page.on('pageerror', (e) => errors.push(String(e)));
   page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });

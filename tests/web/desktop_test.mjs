@@ -1,7 +1,7 @@
 // The page on the desktop (headless Chromium, software GL): hover names, grab the liver with the
 // mouse and drag it, force readout, the organ list (isolate / show all). Screenshots: the atlas and
 // the liver pulled. Prints fps() while the physics runs (docs/performance.md).
-//   node --no-experimental-fetch tests/web/desktop_test.mjs SITE SCREENSHOT_DIR
+//   node tests/web/desktop_test.mjs SITE SCREENSHOT_DIR
 import { mkdirSync } from 'node:fs';
 import path from 'node:path';
 import { SKIP, checker, chromiumPath, openPage, sleep } from './browser.mjs';

@@ -1,13 +1,13 @@
-// Native side of tests/web/wasm_match.mjs: the organ set through the native path
-// (io::read_organ_set + io::scene_from_organ_set + sim::compile), the pull protocol below, and the
-// positions after it as JSON (round-trip doubles) on stdout. The node script replays the same
-// protocol on the exported scene.json in WebAssembly and compares.
+// Native side of tests/web/wasm_match.mjs: the exported scene.json (the SceneDesc that
+// io::scene_from_organ_set() built, written with round-trip doubles) read back into a
+// sim::SceneDesc and compiled natively, the pull protocol below, and the positions after it as
+// JSON on stdout. The node script replays the same protocol in WebAssembly and compares.
 //
 // Protocol: grasp the free vertices of ORGAN within 10 mm of its most anterior vertex (rest shape)
 // as the page's sa_grab() does, attach, move the patch by (0, +20 mm, 0) (anterior), step
 // PULL steps, release, step FREE steps.
 //
-//   web_native_steps SET ORGAN PULL FREE
+//   web_native_steps SCENE_JSON ORGAN PULL FREE
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -15,12 +15,65 @@
 #include <string>
 #include <vector>
 
-#include "softatlas/io/organ_set.hpp"
-#include "softatlas/io/scene.hpp"
+#include <fstream>
+#include <nlohmann/json.hpp>
+
 #include "softatlas/sim/sim.hpp"
 
 namespace sim = softatlas::sim;
-namespace io = softatlas::io;
+using json = nlohmann::json;
+
+// scene.json (pipeline/src/export_web.cpp) -> SceneDesc.
+sim::SceneDesc read_scene(const char* path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(std::string("cannot read ") + path);
+  const json j = json::parse(in);
+  const json& s = j.at("settings");
+  sim::SceneDesc d;
+  if (!sim::parse_integrator(s.at("integrator").get<std::string>(), d.integrator)) throw std::runtime_error("integrator");
+  d.dt_s = s.at("dt_s");
+  d.gravity = s.at("gravity");
+  d.gravity_m_s2 = s.at("gravity_m_s2");
+  d.cg_iterations = s.at("cg_iterations");
+  d.cg_tolerance = s.at("cg_tolerance");
+  d.guard = s.at("guard");
+  d.max_tool_force_N = s.at("max_tool_force_N");
+  d.max_substeps = s.at("max_substeps");
+  d.allow_sleep = s.at("allow_sleep");
+  d.sleep_speed_m_s = s.at("sleep_speed_m_s");
+  d.sleep_steps = s.at("sleep_steps");
+  for (const json& o : j.at("organs")) {
+    sim::OrganDesc od;
+    od.name = o.at("name");
+    od.vertices = o.at("vertices").get<std::vector<double>>();
+    od.faces = o.at("faces").get<std::vector<int32_t>>();
+    od.fixed = o.at("fixed").get<std::vector<int32_t>>();
+    od.shown = o.at("shown");
+    const json& m = o.at("material");
+    if (!sim::parse_model_kind(m.at("model").get<std::string>(), od.material.model)) throw std::runtime_error("model");
+    od.material.elastica_p = m.at("elastica_p");
+    sim::Material& t = od.material;
+    for (auto [name, field] : {std::pair<const char*, double*>{"young_modulus_pa", &t.young_modulus_pa},
+                               {"thickness_m", &t.thickness_m}, {"total_mass_kg", &t.total_mass_kg},
+                               {"density_kg_m3", &t.density_kg_m3}, {"stiffness", &t.stiffness},
+                               {"damping", &t.damping}, {"damping_scale", &t.damping_scale},
+                               {"vertex_mass_kg", &t.vertex_mass_kg}, {"elastica_a", &t.elastica_a},
+                               {"elastica_b", &t.elastica_b}, {"curvature_unit_m", &t.curvature_unit_m},
+                               {"elastica_cap", &t.elastica_cap}, {"tau_s", &t.tau_s}, {"tau_c", &t.tau_c},
+                               {"flexion_stiffness", &t.flexion_stiffness},
+                               {"volume_stiffness", &t.volume_stiffness}})
+      *field = m.at(name).get<double>();
+    d.organs.push_back(std::move(od));
+  }
+  for (const json& c : j.at("connections")) {
+    sim::ConnectionDesc cd;
+    cd.organ_a = c.at("organ_a"), cd.vertex_a = c.at("vertex_a");
+    cd.organ_b = c.at("organ_b"), cd.vertex_b = c.at("vertex_b");
+    cd.rest_length_m = c.at("rest_length_m"), cd.stiffness = c.at("stiffness");
+    d.connections.push_back(cd);
+  }
+  return d;
+}
 
 int main(int argc, char** argv) {
   if (argc != 5) {
@@ -28,7 +81,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
-    const sim::SceneDesc desc = io::scene_from_organ_set(io::read_organ_set(argv[1]), io::SceneOptions{});
+    const sim::SceneDesc desc = read_scene(argv[1]);
     const sim::Model model = sim::compile(desc);
     sim::State state = sim::make_state(model);
     sim::Work work = sim::make_work(model);

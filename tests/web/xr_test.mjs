@@ -3,7 +3,7 @@
 // trigger and pulls it 3 cm towards the user: the liver moves >= 10 mm, the reaction is > 0 and
 // the controller was asked to vibrate. Screenshots: the stereo pair and the pulled liver.
 // Prints the page's fps() with the physics running (docs/performance.md).
-//   node --no-experimental-fetch tests/web/xr_test.mjs SITE SCREENSHOT_DIR
+//   node tests/web/xr_test.mjs SITE SCREENSHOT_DIR
 import { mkdirSync } from 'node:fs';
 import path from 'node:path';
 import { SKIP, checker, chromiumPath, openPage, sleep } from './browser.mjs';

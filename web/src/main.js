@@ -13,6 +13,11 @@ const GRAB_RADIUS_M = 0.010;   // the grasped patch (organ metres), as the nativ
 const VR_GRAB_REACH_M = 0.05;  // a controller grabs the nearest organ surface within this (world)
 const HAPTIC_FULL_N = 0.5;     // reaction force that vibrates at full intensity
 const HAPTIC_PULSE_MS = 40;
+// The page's physics step. The organ set's dt (scene.json, 1 ms for data/atlas) is 18x the stable
+// explicit step, so sim::step() solves it with implicit Euler (25 CG iterations) whatever dt is;
+// one solve per headset frame (1/90 s) instead of per millisecond is what keeps the physics at
+// real time in WebAssembly (docs/web.md, docs/performance.md). ?dt=SECONDS overrides it.
+const PAGE_DT_S = Number(params.get('dt')) > 0 ? Number(params.get('dt')) : 1 / 90;
 
 const $ = (id) => document.getElementById(id);
 const status = (text) => { $('status').textContent = text; };
@@ -33,6 +38,8 @@ sun.position.set(0.5, 2.5, 1.5);
 scene.add(sun);
 const floor = new THREE.Mesh(new THREE.CircleGeometry(2.5, 48), new THREE.MeshLambertMaterial({ color: 0x2b3442 }));
 floor.rotation.x = -Math.PI / 2;
+floor.material.depthWrite = false;
+floor.renderOrder = -1;
 scene.add(floor);
 
 const camera = new THREE.PerspectiveCamera(45, window.innerWidth / window.innerHeight, 0.01, 20);
@@ -48,7 +55,8 @@ window.addEventListener('resize', () => {
 const organs = [];          // {name, mesh, label, index (physics), positions (Float32Array), visible}
 let frame = null;          // AtlasFrame: organ-set frame (RAS, m) <-> world
 let worker = null;
-let latest = null;         // last 'state' message of the worker
+let latest = null;         // last 'state' message of the worker that was drawn
+let pending = null;        // newest 'state' message, drawn at the next frame
 let grab = null;           // {organ, anchorWorld, source: 'mouse'|controller}
 let hapticPulses = 0;
 let xrViewCount = 0;
@@ -83,7 +91,8 @@ async function load() {
       else if (e.data.type === 'error') reject(new Error(e.data.message));
     };
     worker.onerror = (e) => reject(new Error(`physics worker: ${e.message}`));
-    worker.postMessage({ type: 'init', scene: sceneJson });
+    const physicsScene = { ...sceneJson, settings: { ...sceneJson.settings, dt_s: PAGE_DT_S } };
+    worker.postMessage({ type: 'init', scene: physicsScene });
   });
   frame = new AtlasFrame(sceneJson.organs.flatMap((o) => o.vertices));
   const group = new THREE.Group();
@@ -122,7 +131,7 @@ async function load() {
 
   worker.onmessage = (e) => {
     const m = e.data;
-    if (m.type === 'state') applyState(m);
+    if (m.type === 'state') pending = m;
     else if (m.type === 'grabbed' && grab && grab.id === m.id && m.count === 0) grab = null;
     else if (m.type === 'error') status(`physics: ${m.message}`);
   };
@@ -142,7 +151,7 @@ async function load() {
 function applyState(m) {
   latest = m;
   for (const o of organs) {
-    if (o.index < 0) continue;
+    if (o.index < 0 || !m.positions[o.index]) continue;  // null: the organ did not move
     const attr = o.mesh.geometry.attributes.position;
     attr.array.set(m.positions[o.index]);
     attr.needsUpdate = true;
@@ -367,6 +376,7 @@ function updateVR(xrFrame) {
 renderer.setAnimationLoop((time, xrFrame) => {
   frameTimes.push(performance.now());
   if (frameTimes.length > 1000) frameTimes.shift();
+  if (pending) { applyState(pending); pending = null; }
   if (xrFrame) updateVR(xrFrame);
   if (ready) {
     if ($('labels').checked) for (const o of organs) if (o.visible) placeLabel(o);

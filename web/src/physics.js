@@ -70,6 +70,7 @@ export class Physics {
   move(offset) { this.m._sa_move(offset[0], offset[1], offset[2]); }
   release() { this.m._sa_release(); }
   reaction() { return [0, 1, 2].map((c) => this.m._sa_reaction(c)); }
+  awake(i) { return this.m._sa_organ_awake(i) !== 0; }
   maxDisplacement(i) { return this.m._sa_max_displacement(i); }
   explain() { return this.m.UTF8ToString(this.m._sa_explain()); }
 

@@ -12,11 +12,15 @@ let stepsDone = 0;
 let lastPost = 0;
 const MAX_STEPS_PER_TICK = 40;
 
+// Positions of the organs that moved since the last post (null for the others; all when forced).
+let lastSteps = -1;
 function post(force) {
   const now = performance.now();
-  if (!force && now - lastPost < 6) return;
+  if (!force && (now - lastPost < 8 || stepsDone === lastSteps)) return;
   lastPost = now;
+  lastSteps = stepsDone;
   const positions = physics.organNames.map((_, i) => {
+    if (!force && !physics.awake(i)) return null;
     const out = new Float32Array(3 * physics.vertexCounts[i]);
     physics.positions(i, out);
     return out;
@@ -31,7 +35,7 @@ function post(force) {
     wallTime: wall + behind,
     behind,
     steps: stepsDone,
-  }, positions.map((p) => p.buffer));
+  }, positions.filter((p) => p).map((p) => p.buffer));
 }
 
 function tick() {

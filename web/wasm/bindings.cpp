@@ -242,6 +242,13 @@ void sa_release() {
 // The tool reaction of the last sa_step() (N), component c = 0, 1, 2.
 double sa_reaction(int c) { return c >= 0 && c < 3 ? session().reaction[static_cast<size_t>(c)] : 0.0; }
 
+// 1 if the organ is awake (moved in the last step; sleeping organs keep their positions).
+int sa_organ_awake(int organ) {
+  Session& s = session();
+  if (!compiled() || organ < 0 || organ >= sa_organ_count()) return 0;
+  return s.state->organ_awake[static_cast<size_t>(organ)] != 0;
+}
+
 // Largest displacement of one organ's vertices from the rest shape (m).
 double sa_max_displacement(int organ) {
   Session& s = session();
