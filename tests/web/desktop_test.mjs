@@ -60,7 +60,8 @@ try {
   const stats = await page.evaluate('window.softatlasView.stats()');
   const med = (a) => +a.slice().sort((u, v) => u - v)[a.length >> 1].toFixed(1);
   console.log(JSON.stringify({ mode: 'desktop', fps_idle: idle.map((v) => +v.toFixed(1)), fps_pulling: fps.map((v) => +v.toFixed(1)),
-    fps_pulling_median: med(fps), physics_real_time_factor: stats && +(stats.simTime / stats.wallTime).toFixed(3), moved_mm: +moved.toFixed(2) }));
+    fps_pulling_median: med(fps), physics_real_time_factor: stats && +(stats.simTime / stats.wallTime).toFixed(3),
+    main_update_ms: stats && +stats.updateMs.toFixed(2), main_render_ms: stats && +stats.renderMs.toFixed(2), moved_mm: +moved.toFixed(2) }));
 } finally {
   await browser.close();
   server.close();

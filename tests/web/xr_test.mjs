@@ -58,7 +58,7 @@ try {
   const realTime = stats ? stats.simTime / stats.wallTime : 0;
   console.log(JSON.stringify({ mode: 'immersive-vr', fps_samples: fps.map((v) => +v.toFixed(1)),
     fps_median: +fps.slice().sort((a, b) => a - b)[fps.length >> 1].toFixed(1), physics_real_time_factor: +realTime.toFixed(3),
-    physics_steps: stats && stats.steps, moved_mm: +moved.toFixed(2), reaction_N: +reaction.toFixed(4), haptic_pulses: pulses }));
+    physics_steps: stats && stats.steps, main_update_ms: stats && +stats.updateMs.toFixed(2), main_render_ms: stats && +stats.renderMs.toFixed(2), moved_mm: +moved.toFixed(2), reaction_N: +reaction.toFixed(4), haptic_pulses: pulses }));
 } finally {
   await browser.close();
   server.close();

@@ -376,6 +376,7 @@ function updateVR(xrFrame) {
 renderer.setAnimationLoop((time, xrFrame) => {
   frameTimes.push(performance.now());
   if (frameTimes.length > 1000) frameTimes.shift();
+  const t0 = performance.now();
   if (pending) { applyState(pending); pending = null; }
   if (xrFrame) updateVR(xrFrame);
   if (ready) {
@@ -383,8 +384,12 @@ renderer.setAnimationLoop((time, xrFrame) => {
     $('force').textContent = grab ? `${grab.organ.name.replace(/_/g, ' ')}: reaction ${reactionN().toFixed(3)} N` : 'reaction: -';
     if (latest) $('rt').textContent = `physics ${(latest.simTime / Math.max(1e-9, latest.wallTime)).toFixed(2)}x real time · ${fps().toFixed(0)} fps`;
   }
+  const t1 = performance.now();
   renderer.render(scene, camera);
+  const t2 = performance.now();
+  frameCost.update += t1 - t0, frameCost.render += t2 - t1, frameCost.frames++;
 });
+const frameCost = { update: 0, render: 0, frames: 0 };  // main-thread ms, for softatlasView.stats()
 
 // ---- test hook (?test=1) --------------------------------------------------------------------
 function organ(name) {
@@ -416,7 +421,8 @@ if (TEST) {
       return [r.left + (v.x + 1) / 2 * r.width, r.top + (1 - v.y) / 2 * r.height];
     },
     controllers: () => controllerList.map((c) => toArray(c.getWorldPosition(new THREE.Vector3()))),
-    stats: () => latest && { simTime: latest.simTime, wallTime: latest.wallTime, behind: latest.behind, steps: latest.steps },
+    stats: () => latest && { simTime: latest.simTime, wallTime: latest.wallTime, behind: latest.behind, steps: latest.steps,
+      updateMs: frameCost.update / Math.max(1, frameCost.frames), renderMs: frameCost.render / Math.max(1, frameCost.frames) },
   };
 }
 
