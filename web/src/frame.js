@@ -5,12 +5,12 @@
 //
 // R turns the patient's anterior (+y) towards the user (+Z) and superior (+z) up (+Y); the
 // patient's right (+x) is then on the user's left, as in an anterior view (det R = +1). c is the
-// centre of the organs' bounding box, C a point in front of a standing user at chest height, s a
+// centre of the organs' bounding box, C a point 50 cm in front of a standing user at chest height, s a
 // little larger than life so that students see the organs well at arm's length.
 import * as THREE from 'three';
 
 export const WORLD_SCALE = 1.5;
-export const WORLD_CENTRE = [0, 1.25, -0.45];
+export const WORLD_CENTRE = [0, 1.4, -0.5];
 
 export class AtlasFrame {
   constructor(vertices) {
