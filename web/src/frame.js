@@ -44,19 +44,22 @@ export class AtlasFrame {
 
   dirToSet(d) { return [-d.x / this.s, d.z / this.s, d.y / this.s]; }
 
-  centroid(p) {
+  // The functions below take the organ's positions p (#V*3, organ-set frame) and `used`, the
+  // vertices that faces use (the core reports unused source vertices as (0, 0, 0)).
+  centroid(p, used) {
     let x = 0, y = 0, z = 0;
-    const n = p.length / 3;
-    for (let i = 0; i < p.length; i += 3) x += p[i], y += p[i + 1], z += p[i + 2];
+    for (const v of used) x += p[3 * v], y += p[3 * v + 1], z += p[3 * v + 2];
+    const n = Math.max(1, used.length);
     return [x / n, y / n, z / n];
   }
 
   // A point of the organ's anterior surface (world): the most anterior vertex within 15 mm
   // (organ-set units) of the line through the organ's centroid along the anterior direction.
-  anteriorPoint(p) {
-    const [cx, , cz] = this.centroid(p);
+  anteriorPoint(p, used) {
+    const [cx, , cz] = this.centroid(p, used);
     let best = -1, bestAll = -1;
-    for (let i = 0; i < p.length; i += 3) {
+    for (const v of used) {
+      const i = 3 * v;
       if (bestAll < 0 || p[i + 1] > p[bestAll + 1]) bestAll = i;
       const dx = p[i] - cx, dz = p[i + 2] - cz;
       if (dx * dx + dz * dz < 0.015 * 0.015 && (best < 0 || p[i + 1] > p[best + 1])) best = i;
@@ -66,10 +69,11 @@ export class AtlasFrame {
   }
 
   // Distance (world metres) from a world point to the organ's nearest vertex.
-  nearestWorldDistance(p, w) {
+  nearestWorldDistance(p, used, w) {
     const q = this.toSet(w);
     let d2 = Infinity;
-    for (let i = 0; i < p.length; i += 3) {
+    for (const v of used) {
+      const i = 3 * v;
       const dx = p[i] - q[0], dy = p[i + 1] - q[1], dz = p[i + 2] - q[2];
       d2 = Math.min(d2, dx * dx + dy * dy + dz * dz);
     }

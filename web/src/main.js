@@ -94,7 +94,8 @@ async function load() {
     const physicsScene = { ...sceneJson, settings: { ...sceneJson.settings, dt_s: PAGE_DT_S } };
     worker.postMessage({ type: 'init', scene: physicsScene });
   });
-  frame = new AtlasFrame(sceneJson.organs.flatMap((o) => o.vertices));
+  // The room frame from the vertices that faces use.
+  frame = new AtlasFrame(sceneJson.organs.flatMap((o) => [...new Set(o.faces)].flatMap((v) => o.vertices.slice(3 * v, 3 * v + 3))));
   const group = new THREE.Group();
   group.matrixAutoUpdate = false;
   group.matrix.copy(frame.matrix());
@@ -122,7 +123,8 @@ async function load() {
     group.add(mesh);
     const label = makeLabel(o.name.replace(/_/g, ' '));
     scene.add(label);
-    organs.push({ name: o.name, mesh, label, index, positions, visible: true, simulated: index >= 0 });
+    const used = Int32Array.from(new Set(o.faces));
+    organs.push({ name: o.name, mesh, label, index, positions, used, visible: true, simulated: index >= 0 });
   }
   group.updateMatrixWorld(true);
   for (const o of organs) placeLabel(o);
@@ -184,12 +186,12 @@ function makeLabel(text) {
 }
 
 function organCentreWorld(o) {
-  return frame.toWorld(frame.centroid(o.positions));
+  return frame.toWorld(frame.centroid(o.positions, o.used));
 }
 
 // A label floats in front of its organ (towards the viewer) and a little above its centre.
 function placeLabel(o) {
-  const front = frame.anteriorPoint(o.positions);
+  const front = frame.anteriorPoint(o.positions, o.used);
   const c = organCentreWorld(o);
   o.label.position.set(c.x, c.y + 0.02, front.z + 0.015);
 }
@@ -335,7 +337,7 @@ function vrGrab(c) {
   let best = null;
   for (const o of organs) {
     if (!o.visible || !o.simulated) continue;
-    const d = frame.nearestWorldDistance(o.positions, p);
+    const d = frame.nearestWorldDistance(o.positions, o.used, p);
     if (d < VR_GRAB_REACH_M && (!best || d < best.d)) best = { o, d };
   }
   if (best) { startGrab(best.o, p, c); return; }
@@ -404,7 +406,7 @@ if (TEST) {
     enterVR,
     xrViews: () => xrViewCount,
     organCentre: (name) => toArray(organCentreWorld(organ(name))),
-    organSurfacePoint: (name) => toArray(frame.anteriorPoint(organ(name).positions)),
+    organSurfacePoint: (name) => toArray(frame.anteriorPoint(organ(name).positions, organ(name).used)),
     maxDisplacementMm: (name) => {
       const o = organ(name);
       return latest && o.index >= 0 ? 1000 * latest.maxDisplacement[o.index] : 0;
