@@ -90,7 +90,7 @@ void sa_reset() {
   s.grabbed.clear();
 }
 
-// Scene settings; integrator is "verlet" | "semi_implicit" | "implicit". Returns 0, or -1 with
+// Scene settings; integrator is "verlet" | "semi-implicit" | "implicit". Returns 0, or -1 with
 // sa_error() set.
 int sa_settings(const char* integrator, double dt_s, int gravity, double gx, double gy, double gz,
                 int cg_iterations, double cg_tolerance, int guard, double max_tool_force_N,
@@ -98,7 +98,7 @@ int sa_settings(const char* integrator, double dt_s, int gravity, double gx, dou
   Session& s = session();
   if (!sim::parse_integrator(integrator, s.desc.integrator)) {
     s.error = std::string("scene.json: settings.integrator: unknown '") + integrator +
-              "' (expected verlet, semi_implicit or implicit)";
+              "' (expected verlet, semi-implicit or implicit)";
     return -1;
   }
   s.desc.dt_s = dt_s;
