@@ -29,6 +29,8 @@ try {
   for (let k = 1; k <= 10; ++k) { await page.mouse.move(x, y + 6 * k); await sleep(40); }
   const fps = [];
   for (let k = 0; k < 4; ++k) { await sleep(500); fps.push(await page.evaluate(`${T}.fps()`)); }
+  // The physics worker may lag on a loaded machine: wait (up to 60 s) until it caught up.
+  await page.waitForFunction(`${T}.maxDisplacementMm('liver') >= 10`, null, { timeout: 60000, polling: 200 }).catch(() => {});
   const moved = await page.evaluate(`${T}.maxDisplacementMm('liver')`);
   const reaction = await page.evaluate(`${T}.reactionN()`);
   const readout = await page.textContent('#force');

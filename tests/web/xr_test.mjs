@@ -42,6 +42,9 @@ try {
     await sleep(50);
   }
   for (let k = 0; k < 6; ++k) { await sleep(500); fps.push(await page.evaluate(`${T}.fps()`)); }
+  // On a loaded machine the physics worker may lag behind real time: wait (up to 60 s) until it
+  // has caught up with the controller rather than reading the state at a fixed time.
+  await page.waitForFunction(`${T}.maxDisplacementMm('liver') >= 10`, null, { timeout: 60000, polling: 200 }).catch(() => {});
   const moved = await page.evaluate(`${T}.maxDisplacementMm('liver')`);
   const reaction = await page.evaluate(`${T}.reactionN()`);
   const pulses = await page.evaluate(`${T}.hapticPulses()`);

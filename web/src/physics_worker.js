@@ -10,7 +10,7 @@ let simStart = 0;    // simulated time (s) at t0
 let behind = 0;      // wall time dropped because the physics could not keep up (s)
 let stepsDone = 0;
 let lastPost = 0;
-const MAX_STEPS_PER_TICK = 40;
+const MAX_STEPS_PER_TICK = 8;  // then grab / move messages are handled (8 x 1/90 s of physics)
 
 // Positions of the organs that moved since the last post (null for the others; all when forced).
 let lastSteps = -1;
