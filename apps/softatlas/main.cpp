@@ -35,6 +35,7 @@ constexpr const char* kUsage = R"(usage: softatlas <command> [options]
   segment CT --seeds S.yaml -o LABELS.nii.gz
   check SET                             validate an organ set, print its quality report
   export SET -o atlas.glb|atlas.gltf    glTF 2.0 (binary, or JSON + .bin)
+  export SET --web DIR                  static WebXR page (the physics in WebAssembly)
   view SET|LESSON [--headless --frames N --screenshot out.png]
   lesson check LESSON                   validate only (FILE:LINE:COLUMN: message)
   lesson run LESSON --device SCRIPT --out DIR

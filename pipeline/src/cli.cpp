@@ -14,6 +14,7 @@
 #include <cmath>
 
 #include "softatlas/pipeline/build.hpp"
+#include "softatlas/pipeline/export_web.hpp"
 #include "softatlas/pipeline/label_table.hpp"
 #include "softatlas/sim/error.hpp"
 
@@ -194,11 +195,19 @@ int cmd_check(const std::vector<std::string>& args) {
 }
 
 int cmd_export(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas export: organ set -> glTF 2.0 (.glb binary, .gltf JSON + .bin)", "softatlas export"};
-  std::string folder, output;
+  CLI::App app{"softatlas export: organ set -> glTF 2.0 (.glb binary, .gltf JSON + .bin), or a WebXR page (--web)", "softatlas export"};
+  std::string folder, output, web;
   app.add_option("set", folder, "organ-set folder")->required();
-  app.add_option("-o,--output", output, "output .glb or .gltf")->required();
+  auto* glb = app.add_option("-o,--output", output, "output .glb or .gltf");
+  auto* page = app.add_option("--web", web, "output folder: static WebXR page (docs/web.md)");
+  glb->excludes(page);
   if (int rc = parse(app, args, 1); rc >= 0) return rc;
+  if (output.empty() && web.empty()) throw InputError("softatlas export", "expected -o atlas.glb or --web DIR");
+  if (!web.empty()) {
+    export_web(folder, web, web_dist_folder());
+    std::fprintf(stderr, "[softatlas export] wrote %s (serve it, then open index.html; docs/web.md)\n", web.c_str());
+    return 0;
+  }
   export_gltf(folder, output);
   std::fprintf(stderr, "[softatlas export] wrote %s\n", output.c_str());
   return 0;
