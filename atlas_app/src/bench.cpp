@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "softatlas/app/haptics.hpp"
+#include "softatlas/app/virtual_coupling.hpp"
 #include "softatlas/app/viewer.hpp"
 
 namespace softatlas::app {
@@ -89,34 +90,26 @@ std::string bench_haptic(const HapticBenchOptions& o) {
   std::atomic<bool> stop{false};
   std::atomic<long> physics_steps{0};
   std::atomic<double> physics_busy_s{0};
+  std::atomic<double> physics_wall_s{0};
   std::thread physics([&] {
-    // Real-time paced: one step per dt of wall time; if a step takes longer, it lags (the
-    // haptic loop keeps sending the last reaction).
+    // Real-time paced: one step per dt of wall time; if a step takes longer, it lags. The haptic
+    // loop recomputes the force every tick from the local model each step publishes, and the
+    // step holds the grasp at the coupling's proxy (virtual_coupling.hpp).
     pin_current_thread(cpus.haptic_cpu);
     const auto t0 = Clock::now();
-    bool attached = false;
+    CouplingPhysics coupling(scene.model);
+    if (!verts.empty()) coupling.grasp(scene.model, scene.state, verts);
     std::vector<std::vector<float>> local(snapshot.size());
     double busy = 0;
     long n = 0;
     while (!stop.load()) {
       ToolCommand cmd;
-      if (loop.latest_command(cmd) && !verts.empty()) {
-        if (!attached) {
-          sim::attach(scene.model, scene.state, verts, cmd.offset_m, 1);
-          attached = true;
-        } else {
-          sim::move_attachment(scene.state, cmd.offset_m);
-        }
-      }
+      if (loop.latest_command(cmd)) coupling.apply(scene.model, scene.state, cmd);
       const auto s0 = Clock::now();
       sim::step(scene.model, scene.state, scene.work);
       busy += seconds_since(s0);
       ++n;
-      ToolFeedback fb;
-      fb.reaction_N = sim::tool_reaction(scene.state);
-      fb.contact = attached;
-      fb.physics_time_s = scene.state.time_s;
-      loop.publish(fb);
+      loop.publish(coupling.local_model(scene.model, scene.state));
       if (n % 16 == 0) {  // hand positions to the renderer now and then, never waiting for it
         for (size_t k = 0; k < local.size(); ++k) scene.positions_mm(static_cast<int>(k), local[k]);
         std::unique_lock<std::mutex> lock(snapshot_mutex, std::try_to_lock);
@@ -127,6 +120,7 @@ std::string bench_haptic(const HapticBenchOptions& o) {
     }
     physics_steps.store(n);
     physics_busy_s.store(busy);
+    physics_wall_s.store(seconds_since(t0));
   });
   loop.start(o.realtime, cpus.haptic_cpu);
   const auto t0 = Clock::now();
@@ -160,7 +154,15 @@ std::string bench_haptic(const HapticBenchOptions& o) {
                       {"periods_over_2ms", st.late_2ms}, {"period_us_mean", st.period_us_mean},
                       {"physics_steps", ns},
                       {"physics_us_per_step", ns ? physics_busy_s.load() / static_cast<double>(ns) * 1e6 : 0.0},
-                      {"physics_realtime_factor", scene.state.time_s / render_s},
+                      // simulated seconds of the whole scene per wall second of the physics thread
+                      {"physics_realtime_factor", scene.state.time_s / physics_wall_s.load()},
+                      {"physics_step_s", scene.model.dt_s},
+                      // ticks whose force was recomputed from the tissue model, per second
+                      {"force_update_hz", static_cast<double>(st.model_ticks) / render_s},
+                      {"model_update_hz", static_cast<double>(st.model_updates) / render_s},
+                      {"force_jump_max_N", st.force_jump_max_N}, {"force_peak_N", st.peak_force_N},
+                      {"coupling_stiffness_N_m", loop.coupling().params().stiffness_N_m},
+                      {"coupling_damping_N_s_m", loop.coupling().params().damping_N_s_m},
                       {"render_fps", frames / render_s}, {"render_fps_target", o.render_fps},
                       {"haptic_physics_cpu", cpus.haptic_cpu}, {"render_cpus", cpus.render_cpus},
                       {"render_size", {o.width, o.height}},

@@ -100,12 +100,25 @@ bool lock_memory(std::string& why) {
   return false;
 }
 
-HapticLoop::HapticLoop(Device& device, ForceShaper shaper, int64_t max_cycles, double rate_hz)
-    : device_(device), shaper_(shaper), period_ns_(1e9 / rate_hz) {
+HapticLoop::HapticLoop(Device& device, ForceShaper shaper, int64_t max_cycles, double rate_hz, bool probe)
+    : device_(device),
+      shaper_(shaper),
+      coupling_(size_coupling(device.max_stiffness_N_m(), rate_hz), probe),
+      period_ns_(1e9 / rate_hz) {
   periods_ns_.assign(static_cast<size_t>(std::max<int64_t>(max_cycles, 1)), 0);  // pre-faulted
 }
 
 HapticLoop::~HapticLoop() { stop(); }
+
+void HapticLoop::publish(const ToolFeedback& fb) {
+  LocalModel m;
+  m.serial = ++feedback_serial_;
+  m.valid = fb.contact;
+  m.has_stiffness = false;  // R(p) = R0: the loop holds the reaction until the next one
+  m.reaction0_N = fb.reaction_N;
+  m.physics_time_s = fb.physics_time_s;
+  model_.store(m);
+}
 
 CpuPlan plan_cpus() {
   CpuPlan plan;
@@ -148,6 +161,32 @@ void HapticLoop::stop() {
   running_.store(false);
 }
 
+Vec3d HapticLoop::tick(double t_s) {
+  // 1. the newest tissue model (never waiting: a read that overlaps a write keeps the old one),
+  // 2. device -> coupling -> force from the model at this tick's position, 3. proxy -> physics
+  LocalModel model;
+  if (model_.load(model) && model.serial != serial_) {
+    serial_ = model.serial;
+    coupling_.update(model, t_s);
+    ++model_updates_;
+  }
+  ToolCommand cmd = device_.read(t_s);
+  bool from_model = false;
+  const Vec3d raw = coupling_.tick(cmd, t_s, from_model);
+  command_.store(cmd);
+  const Vec3d f = shaper_.shape(raw, cmd.contact, t_s);
+  device_.write_force(f);
+  model_ticks_ += from_model ? 1 : 0;
+  if (cmd.contact && last_contact_) {
+    const double d[3] = {f[0] - last_f_[0], f[1] - last_f_[1], f[2] - last_f_[2]};
+    force_jump_max_N_ = std::max(force_jump_max_N_, std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]));
+  }
+  last_f_ = f;
+  last_contact_ = cmd.contact;
+  peak_force_N_ = std::max(peak_force_N_, std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]));
+  return f;
+}
+
 void HapticLoop::run() {
   pin_current_thread(cpu_);
   if (want_realtime_) {
@@ -165,7 +204,6 @@ void HapticLoop::run() {
   const int64_t period = static_cast<int64_t>(period_ns_);
   int64_t start_ns = next.tv_sec * 1000000000LL + next.tv_nsec;
   int64_t last_ns = start_ns;
-  ToolFeedback fb;
   const int64_t capacity = static_cast<int64_t>(periods_ns_.size());
   while (!stop_.load(std::memory_order_relaxed)) {
     next.tv_nsec += period;
@@ -177,13 +215,7 @@ void HapticLoop::run() {
     timespec now{};
     clock_gettime(CLOCK_MONOTONIC, &now);
     const int64_t now_ns = now.tv_sec * 1000000000LL + now.tv_nsec;
-    const double t_s = static_cast<double>(now_ns - start_ns) * 1e-9;
-    // 1. device -> physics (pose), 2. physics -> device (last reaction, never waiting)
-    command_.store(device_.read(t_s));
-    feedback_.load(fb);  // keeps the previous value if the physics is mid-write
-    const Vec3d f = shaper_.shape(fb.reaction_N, fb.contact, t_s);
-    device_.write_force(f);
-    peak_force_N_ = std::max(peak_force_N_, std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]));
+    tick(static_cast<double>(now_ns - start_ns) * 1e-9);
     if (cycles_ < capacity) periods_ns_[static_cast<size_t>(cycles_)] = now_ns - last_ns;
     ++cycles_;
     last_ns = now_ns;
@@ -205,6 +237,9 @@ HapticStats HapticLoop::stats() const {
   s.memory_locked = locked_;
   s.message = message_;
   s.peak_force_N = peak_force_N_;
+  s.model_ticks = model_ticks_;
+  s.model_updates = model_updates_;
+  s.force_jump_max_N = force_jump_max_N_;
   const int64_t n = std::min<int64_t>(cycles_, static_cast<int64_t>(periods_ns_.size()));
   if (n <= 1) return s;
   // The first period includes thread start-up; skip it.

@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "softatlas/app/haptics.hpp"
+#include "softatlas/app/virtual_coupling.hpp"
 #include "softatlas/app/lesson_run.hpp"
 #include "softatlas/app/viewer.hpp"
 
@@ -32,6 +33,8 @@ struct PhysicsThread {
   bool grasp_pending = false, release_pending = false;
   std::vector<std::vector<float>> snapshot;
   double us_per_step = 0, max_disp_mm = 0;
+  double realtime_factor = 0;  // simulated seconds per wall second (< 1: slow motion)
+  double grasp_sim_s = 0;      // simulated seconds since the grasp began (lesson rules)
   std::atomic<bool> stop{false}, paused{false};
   std::thread thread;
   int cpu = -1;  // shared with the haptic loop (CpuPlan)
@@ -44,23 +47,27 @@ struct PhysicsThread {
     std::vector<std::vector<float>> local(snapshot.size());
     double avg = 0;
     double sim_offset = 0;
+    CouplingPhysics coupling(scene->model);  // the grasp is held at the haptic loop's proxy
+    double grasp_t0 = 0, rt_sim0 = scene->state.time_s;
+    auto rt_wall0 = Clock::now();
     while (!stop.load()) {
       {
         std::lock_guard<std::mutex> lock(mutex);
         if (release_pending) {
-          sim::release(scene->state);
+          coupling.release(scene->state);
           attached = false;
           release_pending = false;
         }
         if (grasp_pending) {
           verts = grasp_request;
           grasp_pending = false;
-          sim::attach(scene->model, scene->state, verts, {0, 0, 0}, 1);
+          coupling.grasp(scene->model, scene->state, verts);
           attached = true;
+          grasp_t0 = scene->state.time_s;
         }
       }
       ToolCommand cmd;
-      if (attached && loop->latest_command(cmd)) sim::move_attachment(scene->state, cmd.offset_m);
+      if (attached && loop->latest_command(cmd)) coupling.apply(scene->model, scene->state, cmd);
       if (paused.load()) {
         std::this_thread::sleep_for(std::chrono::milliseconds(5));
         sim_offset = scene->state.time_s - std::chrono::duration<double>(Clock::now() - t0).count();
@@ -70,18 +77,22 @@ struct PhysicsThread {
       sim::step(scene->model, scene->state, scene->work);
       const double us = std::chrono::duration<double>(Clock::now() - s0).count() * 1e6;
       avg = avg == 0 ? us : 0.98 * avg + 0.02 * us;
-      ToolFeedback fb;
-      fb.reaction_N = sim::tool_reaction(scene->state);
-      fb.contact = attached;
-      loop->publish(fb);
+      loop->publish(coupling.local_model(scene->model, scene->state));
       if (scene->state.step_count % 8 == 0) {
         for (size_t k = 0; k < local.size(); ++k) scene->positions_mm(static_cast<int>(k), local[k]);
         const double disp = attached ? scene->mean_displacement_mm(verts) : 0.0;
+        const double wall = std::chrono::duration<double>(Clock::now() - rt_wall0).count();
         std::unique_lock<std::mutex> lock(mutex, std::try_to_lock);
         if (lock.owns_lock()) {
           snapshot.swap(local);
           us_per_step = avg;
           max_disp_mm = disp;
+          grasp_sim_s = attached ? scene->state.time_s - grasp_t0 : 0.0;
+          if (wall > 0.5) {  // over the last half second of wall time
+            realtime_factor = (scene->state.time_s - rt_sim0) / wall;
+            rt_sim0 = scene->state.time_s;
+            rt_wall0 = Clock::now();
+          }
         }
       }
       const double ahead = scene->state.time_s - sim_offset - std::chrono::duration<double>(Clock::now() - t0).count();
@@ -157,7 +168,7 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
   Eigen::Vector3f grab_point(0, 0, 0);
   std::string status;
   int lesson_step = -1;
-  double peak_force = 0;
+  double peak_force = 0, pull_disp = 0;  // pull_disp: reached within the time limit (simulated)
   PhysicsSettings live = physics;
   // The panel starts from the lesson's model, else the first simulated organ's material.
   const std::string start_model = !live.model.empty() ? live.model
@@ -220,6 +231,7 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
     if (s.kind == StepKind::wait && !o.done) o = {true, true, 1, "waited"};
     task_status();
     peak_force = 0;
+    pull_disp = 0;
   };
   auto record = [&](bool passed, const std::string& reason) {
     TaskOutcome& o = outcomes[static_cast<size_t>(lesson_step)];
@@ -293,6 +305,7 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         grasp_local = local;
         hand_off.setZero();
         peak_force = 0;
+        pull_disp = 0;
         if (cur && cur->kind == StepKind::pull && !outcomes[static_cast<size_t>(lesson_step)].passed) {
           TaskOutcome& o = outcomes[static_cast<size_t>(lesson_step)];
           o.attempts++;
@@ -373,11 +386,16 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
       std::snprintf(b, sizeof b, "%.2f N", fmag);
       viewer->texts.push_back({tip, b});
       if (const LessonStep* cur = current(); cur && cur->kind == StepKind::pull && cur->pull.organ == scene->name(grasp_view)) {
-        double disp;
+        double disp, since;
         {
           std::lock_guard<std::mutex> lock(phys->mutex);
           disp = phys->max_disp_mm;
+          since = phys->grasp_sim_s;
         }
+        // As `lesson run` judges it: what the pull reaches within time_limit_s of simulated time
+        // after the grasp (a slow physics neither stretches nor shrinks the task).
+        if (since <= cur->pull.time_limit_s) pull_disp = std::max(pull_disp, disp);
+        disp = pull_disp;
         char r[128];
         if (peak_force > cur->pull.max_force_N) {
           std::snprintf(r, sizeof r, "pulled too hard: peak force %.2f N above the %.2f N allowed", peak_force, cur->pull.max_force_N);
@@ -471,13 +489,17 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         ImGui::Text("score: %d of %d tasks passed (%d tried)", passed, tasks, done);
       }
       if (ImGui::CollapsingHeader("Stats", ImGuiTreeNodeFlags_DefaultOpen)) {
-        double us;
+        double us, rtf;
         {
           std::lock_guard<std::mutex> lock(phys->mutex);
           us = phys->us_per_step;
+          rtf = phys->realtime_factor;
         }
         ImGui::Text("render %.0f fps (%s)", fps, ctx->backend());
         ImGui::Text("physics %.3f ms/step, %d vertices", us * 1e-3, scene->model.nvert);
+        // simulated seconds per wall second: below 1 the scene moves in slow motion
+        if (rtf > 0 && rtf < 0.95) ImGui::TextColored(ImVec4(1.0f, 0.6f, 0.2f, 1.0f), "physics %.2fx real time (slow motion)", rtf);
+        else ImGui::Text("physics %.2fx real time", rtf);
         ImGui::Text("haptic loop: %s", loop->running() ? "1 kHz, running" : "stopped");
         ImGui::Text("tool force %.2f N (limit %.1f N)", fmag, opt.max_force_N);
       }

@@ -2,10 +2,12 @@
 // loop thread with its lock-free exchange with the physics thread.
 //
 //   device --read(t)--> HapticLoop (1 kHz thread) --SeqLock<ToolCommand>--> physics thread
-//   device <--write_force-- ForceShaper <--SeqLock<ToolFeedback>-- physics (tool_reaction)
+//                       (virtual coupling: proxy)      (attachment at the proxy)
+//   device <--write_force-- ForceShaper <-- HapticCoupling <--SeqLock<LocalModel>-- physics
 //
-// The loop never waits for the physics: it sends the last published force (the physics may run
-// slower than 1 kHz). It never allocates or locks after start().
+// The loop never waits for the physics: every tick it recomputes the force from the last
+// published local model of the tissue (virtual_coupling.hpp), so the force changes at 1 kHz
+// although the physics may step far slower. It never allocates or locks after start().
 #pragma once
 
 #include <array>
@@ -17,25 +19,10 @@
 #include <thread>
 #include <vector>
 
+#include "softatlas/app/tool_command.hpp"
+#include "softatlas/app/virtual_coupling.hpp"
+
 namespace softatlas::app {
-
-using Vec3d = std::array<double, 3>;
-
-// What the device commands this instant. Positions are tool offsets from the grasp point (m);
-// a force-mode device commands a force (N) instead of a position.
-struct ToolCommand {
-  double time_s = 0.0;
-  Vec3d offset_m{0, 0, 0};
-  Vec3d force_N{0, 0, 0};
-  bool force_mode = false;
-  bool engaged = false;   // button down / grasping
-};
-
-struct ToolFeedback {
-  Vec3d reaction_N{0, 0, 0};  // the core's tool_reaction (force of the organ on the tool)
-  bool contact = false;
-  double physics_time_s = 0.0;
-};
 
 class Device {
  public:
@@ -46,6 +33,9 @@ class Device {
   // The shaped force to render (N). Real devices send it to the motors.
   virtual void write_force(const Vec3d& force_N) = 0;
   virtual double max_force_N() const = 0;
+  // The stiffness the device renders stably at its servo rate (N/m, the maker's rating); it
+  // sizes the virtual coupling. Default: a desktop 3-DoF stylus device (about 1 N/mm).
+  virtual double max_stiffness_N_m() const { return 1000.0; }
 };
 
 // Keyframes of a scripted device: linear interpolation between them, last one held.
@@ -139,6 +129,9 @@ class SeqLock {
 
 struct HapticStats {
   int64_t cycles = 0;
+  int64_t model_ticks = 0;        // ticks whose force was computed from a tissue model
+  int64_t model_updates = 0;      // local models received from the physics
+  double force_jump_max_N = 0;    // largest change of the device force between two ticks in contact
   double period_us_p50 = 0, period_us_p99 = 0, period_us_max = 0, period_us_mean = 0;
   int64_t late_2ms = 0;     // periods longer than 2 ms
   double period_us_p999 = 0;
@@ -151,7 +144,10 @@ struct HapticStats {
 class HapticLoop {
  public:
   // Reserves room for `max_cycles` period samples up front (no allocation while running).
-  HapticLoop(Device& device, ForceShaper shaper, int64_t max_cycles, double rate_hz = 1000.0);
+  // The virtual coupling is sized from device.max_stiffness_N_m() and rate_hz; probe = true
+  // makes the tool a probe tip that presses on surfaces instead of a grasp.
+  HapticLoop(Device& device, ForceShaper shaper, int64_t max_cycles, double rate_hz = 1000.0,
+             bool probe = false);
   ~HapticLoop();
   // cpu >= 0: the loop's thread runs on that core only (see CpuPlan).
   void start(bool want_realtime, int cpu = -1);
@@ -160,7 +156,15 @@ class HapticLoop {
 
   // Physics side (another thread):
   bool latest_command(ToolCommand& out) const { return command_.load(out); }
-  void publish(const ToolFeedback& fb) { feedback_.store(fb); }
+  // A local model of the tissue (CouplingPhysics::local_model) after each physics step.
+  void publish(const LocalModel& model) { model_.store(model); }
+  // A bare reaction without stiffness: the loop holds it (zero-order hold; not a model).
+  void publish(const ToolFeedback& fb);
+  const HapticCoupling& coupling() const { return coupling_; }
+
+  // One tick at time t_s (the thread calls it every period; a headless replay calls it itself,
+  // without start()): newest model -> device read -> coupling -> shaper -> device force.
+  Vec3d tick(double t_s);
 
   HapticStats stats() const;  // after stop()
 
@@ -168,12 +172,18 @@ class HapticLoop {
   void run();
   Device& device_;
   ForceShaper shaper_;
+  HapticCoupling coupling_;
   double period_ns_;
   std::vector<int64_t> periods_ns_;
   int64_t cycles_ = 0;
-  double peak_force_N_ = 0;
+  double peak_force_N_ = 0, force_jump_max_N_ = 0;
+  int64_t model_ticks_ = 0, model_updates_ = 0;
+  uint64_t feedback_serial_ = 0;  // publish(ToolFeedback) numbers its models (one writer)
+  uint64_t serial_ = 0;           // serial of the last model handed to the coupling
+  Vec3d last_f_{0, 0, 0};
+  bool last_contact_ = false;
   SeqLock<ToolCommand> command_;
-  SeqLock<ToolFeedback> feedback_;
+  SeqLock<LocalModel> model_;
   std::atomic<bool> running_{false}, stop_{false};
   std::thread thread_;
   bool want_realtime_ = false, realtime_ = false, locked_ = false;
