@@ -259,11 +259,24 @@ LocalModel CouplingPhysics::local_model(const sim::Model& m, const sim::State& s
   out.physics_time_s = s.time_s;
   out.contact_id = contact_id_;
   if (attached_) {
+    // R(p) = R0 + B v0 - (K + B / dt) (p - p0): this step's damping force -B v0 (held vertices
+    // moved at v0 = (p0 - p0_prev) / dt) is replaced by the next step's, -B (p - p0) / dt.
+    double B[9];
+    step_response(m, s, held_, scratch_, out.K_N_m, B);
+    const Vec3d R0 = sim::tool_reaction(s);
+    Vec3d v0;
+    for (int k = 0; k < 3; ++k) v0[k] = have_prev_ ? (proxy_[k] - prev_proxy_[k]) / m.dt_s : 0.0;
     out.valid = true;
     out.has_stiffness = true;
     out.p0_m = proxy_;
-    out.reaction0_N = sim::tool_reaction(s);
-    held_stiffness(m, s, held_, scratch_, out.K_N_m);
+    for (int r = 0; r < 3; ++r) {
+      out.reaction0_N[r] = R0[r];
+      for (int k = 0; k < 3; ++k) out.reaction0_N[r] += B[3 * r + k] * v0[k];
+    }
+    prev_proxy_ = proxy_;
+    have_prev_ = true;
+  } else {
+    have_prev_ = false;
   }
   if (mode_ == Mode::probe && !attached_) {
     // Free probe: the plane of the surface nearest to the tip, and the patch's stiffness there.
@@ -273,7 +286,8 @@ LocalModel CouplingPhysics::local_model(const sim::Model& m, const sim::State& s
     nearest_surface(m, s, world, point, normal, vertex);
     if (vertex >= 0) {
       patch(m, s, vertex, patch_scratch_);
-      held_stiffness(m, s, patch_scratch_, scratch_, out.K_N_m);
+      double B[9];
+      step_response(m, s, patch_scratch_, scratch_, out.K_N_m, B);
       out.surface = true;
       out.surface_m = {point[0] - home_[0], point[1] - home_[1], point[2] - home_[2]};
       out.normal = normal;
@@ -282,25 +296,39 @@ LocalModel CouplingPhysics::local_model(const sim::Model& m, const sim::State& s
   return out;
 }
 
-void CouplingPhysics::held_stiffness(const sim::Model& m, const sim::State& s, const std::vector<int32_t>& verts,
-                                     std::vector<uint8_t>& held, double K[9]) {
+void CouplingPhysics::held_response(const sim::Model& m, const sim::State& s, const std::vector<int32_t>& verts,
+                                    std::vector<uint8_t>& held, double K[9], double B[9]) {
   std::fill(K, K + 9, 0.0);
+  std::fill(B, B + 9, 0.0);
   if (held.size() != static_cast<size_t>(m.nvert)) held.assign(static_cast<size_t>(m.nvert), 0);
   for (int32_t v : verts) held[static_cast<size_t>(v)] = 1;
-  auto add = [&](int32_t a, int32_t b, double k, double l0) {
+  auto add = [&](int32_t a, int32_t b, double k, double d, double l0) {
     if (held[static_cast<size_t>(a)] == held[static_cast<size_t>(b)]) return;  // both held or both free
-    const double d[3] = {s.x[b] - s.x[a], s.y[b] - s.y[a], s.z[b] - s.z[a]};
-    const double l = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const double e[3] = {s.x[b] - s.x[a], s.y[b] - s.y[a], s.z[b] - s.z[a]};
+    const double l = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
     if (!(l > 0)) return;
-    const double u[3] = {d[0] / l, d[1] / l, d[2] / l};
+    const double u[3] = {e[0] / l, e[1] / l, e[2] / l};
     const double kt = k * std::max(0.0, 1.0 - l0 / l);  // tension's transverse stiffness
     for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) K[3 * r + c] += (k - kt) * u[r] * u[c] + (r == c ? kt : 0.0);
+      for (int c = 0; c < 3; ++c) {
+        K[3 * r + c] += (k - kt) * u[r] * u[c] + (r == c ? kt : 0.0);
+        B[3 * r + c] += d * u[r] * u[c];  // eq 10 damping acts along the spring
+      }
   };
-  for (int32_t i = 0; i < m.nspring; ++i) add(m.spring_a[i], m.spring_b[i], m.spring_k[i], m.spring_length0[i]);
-  for (int32_t i = 0; i < m.nconn; ++i) add(m.conn_a[i], m.conn_b[i], m.conn_k[i], m.conn_rest[i]);
+  for (int32_t i = 0; i < m.nspring; ++i)
+    add(m.spring_a[i], m.spring_b[i], m.spring_k[i], m.spring_d[i], m.spring_length0[i]);
+  for (int32_t i = 0; i < m.nconn; ++i) add(m.conn_a[i], m.conn_b[i], m.conn_k[i], m.conn_d[i], m.conn_rest[i]);
   for (int32_t v : verts) held[static_cast<size_t>(v)] = 0;
-  project_psd(K);
+}
+
+void CouplingPhysics::step_response(const sim::Model& m, const sim::State& s, const std::vector<int32_t>& verts,
+                                    std::vector<uint8_t>& held, double K_step[9], double B[9]) {
+  // The next step moves the held vertices from p0 to p in dt: besides the springs (K) their
+  // dampers answer with B (p - p0) / dt, so one step's reaction is linear in p with K + B / dt.
+  double K[9];
+  held_response(m, s, verts, held, K, B);
+  for (int i = 0; i < 9; ++i) K_step[i] = K[i] + B[i] / m.dt_s;
+  project_psd(K_step);
 }
 
 void CouplingPhysics::nearest_surface(const sim::Model& m, const sim::State& s, const Vec3d& tip, Vec3d& point,

@@ -3,6 +3,8 @@
 // no jump above the bound) and a probe pressed into the liver's surface (force grows with depth).
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
+
 #include <cmath>
 #include <cstring>
 #include <vector>
@@ -198,9 +200,9 @@ TEST(VirtualCoupling, ReplayedPullGivesTheSameForceEveryRunWithoutJumps) {
 
 // The probe against the liver's surface as the physics publishes it before contact (the plane
 // of the nearest surface and the linearised stiffness of the patch there, from the liver's
-// springs): pressed 2, 4, ... 10 mm below the surface, the tip is held by the coupling, the proxy
-// stays on the (deformed) surface above the tip, and the force pushes out along the normal,
-// growing with depth as the coupling and the patch in series (k_c K / (k_c + K) per metre).
+// springs and dampers): pressed 2, 4, ... 10 mm below the surface, the tip is held by the
+// coupling, the proxy stays on the (deformed) surface above the tip, and the force pushes out
+// along the normal, growing with depth as the coupling and the patch in series.
 TEST(VirtualCoupling, ProbePressedIntoTheLiverPushesBackMoreTheDeeperItGoes) {
   const io::OrganSet set = io::read_organ_set(test::atlas_dir());
   AtlasScene scene(set, {"liver"}, {}, PhysicsSettings{});
@@ -251,7 +253,12 @@ TEST(VirtualCoupling, ProbePressedIntoTheLiverPushesBackMoreTheDeeperItGoes) {
     EXPECT_TRUE(from_model);
     const double push = dot(f, n);
     EXPECT_GT(push, last) << depth * 1e3 << " mm";
-    EXPECT_NEAR(push, cp.stiffness_N_m * Kn / (cp.stiffness_N_m + Kn) * depth, 0.02 * push);
+    // at rest: the patch (K) and the coupling (k_c) in series, F = k_c K (k_c I + K)^-1 depth n
+    Eigen::Matrix3d K = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(m.K_N_m);
+    const Eigen::Vector3d nv(n[0], n[1], n[2]);
+    const double kc = cp.stiffness_N_m;
+    const double expected = nv.dot(kc * K * (kc * Eigen::Matrix3d::Identity() + K).inverse() * (depth * nv));
+    EXPECT_NEAR(push, expected, 0.01 * push);
     const Vec3d rel{probe.proxy()[0] - m.surface_m[0], probe.proxy()[1] - m.surface_m[1], probe.proxy()[2] - m.surface_m[2]};
     const double proxy_depth = -dot(rel, n);
     EXPECT_GT(proxy_depth, 0.0);        // the surface gives way under the proxy...

@@ -11,6 +11,8 @@
 // "Multirate simulation for high fidelity haptic interaction with deformable objects"; Mark et
 // al. 1996's intermediate representation):
 //   R(p) = R0 - K (p - p0)                         force of the tissue on the tool (N)
+// with K the linearised answer of one physics step to moving the held vertices from p0 to p
+// (springs plus dampers: K_springs + B / dt, CouplingPhysics::step_response).
 // The device holds the proxy through the coupling (Adams & Hannaford 1999, "Stable haptic
 // interaction with virtual environments"); the proxy is massless, so at every tick
 //   k_c (x_d - p) + b_c (v_d - v_p) + R(p) = 0,    v_p = (p - p_prev) / T
@@ -135,12 +137,15 @@ class CouplingPhysics {
   // After sim::step: the model to publish.
   LocalModel local_model(const sim::Model& model, const sim::State& state);
 
-  // Stiffness (N/m, row-major 3x3, symmetric PSD) of moving `verts` together while the rest of
-  // the mesh stays: the Hooke linearisation of every edge and connection spring with one end
-  // held, k u u^T + k max(0, 1 - l0 / l) (I - u u^T), projected onto the PSD cone.
-  static void held_stiffness(const sim::Model& model, const sim::State& state,
-                             const std::vector<int32_t>& verts, std::vector<uint8_t>& held_scratch,
-                             double K[9]);
+  // Stiffness K (N/m) and damping B (N s/m), row-major 3x3, of moving `verts` together while
+  // the rest of the mesh stays: the Hooke linearisation of every edge and connection spring
+  // with one end held, k u u^T + k max(0, 1 - l0 / l) (I - u u^T), and its damper d u u^T.
+  static void held_response(const sim::Model& model, const sim::State& state, const std::vector<int32_t>& verts,
+                            std::vector<uint8_t>& held_scratch, double K[9], double B[9]);
+  // One physics step's answer to moving the held vertices: K + B / dt (projected onto the PSD
+  // cone), with B.
+  static void step_response(const sim::Model& model, const sim::State& state, const std::vector<int32_t>& verts,
+                            std::vector<uint8_t>& held_scratch, double K_step[9], double B[9]);
   const std::vector<int32_t>& held() const { return held_; }
 
  private:
@@ -157,6 +162,8 @@ class CouplingPhysics {
   std::vector<int32_t> vert_face_begin_, vert_faces_;  // CSR vertex -> faces (normals)
   std::vector<int32_t> patch_scratch_;
   Vec3d proxy_{0, 0, 0}, contact_point_{0, 0, 0};
+  Vec3d prev_proxy_{0, 0, 0};  // proxy of the previous step (the held vertices' velocity)
+  bool have_prev_ = false;
   uint32_t contact_id_ = 0;
   bool attached_ = false;
   uint64_t serial_ = 0;
