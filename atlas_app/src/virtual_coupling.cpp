@@ -232,12 +232,8 @@ void CouplingPhysics::apply(const sim::Model& m, sim::State& s, const ToolComman
     // A new touch: hold the patch under the contact point where it is now.
     contact_id_ = cmd.contact_id;
     contact_point_ = cmd.contact_m;
-    const Vec3d world{home_[0] + contact_point_[0], home_[1] + contact_point_[1], home_[2] + contact_point_[2]};
     Vec3d point, normal;
-    int32_t vertex = -1;
-    nearest_surface(m, s, world, point, normal, vertex);
-    if (vertex >= 0) {
-      patch(m, s, vertex, patch_scratch_);
+    if (patch_near(m, s, contact_point_, point, normal)) {
       sim::attach(m, s, patch_scratch_, {0, 0, 0}, 1);
       held_ = s.tool.verts;
       attached_ = !held_.empty();
@@ -280,12 +276,8 @@ LocalModel CouplingPhysics::local_model(const sim::Model& m, const sim::State& s
   }
   if (mode_ == Mode::probe && !attached_) {
     // Free probe: the plane of the surface nearest to the tip, and the patch's stiffness there.
-    const Vec3d world{home_[0] + tip_[0], home_[1] + tip_[1], home_[2] + tip_[2]};
     Vec3d point, normal;
-    int32_t vertex = -1;
-    nearest_surface(m, s, world, point, normal, vertex);
-    if (vertex >= 0) {
-      patch(m, s, vertex, patch_scratch_);
+    if (patch_near(m, s, tip_, point, normal)) {
       double B[9];
       step_response(m, s, patch_scratch_, scratch_, out.K_N_m, B);
       out.surface = true;
@@ -361,6 +353,15 @@ void CouplingPhysics::nearest_surface(const sim::Model& m, const sim::State& s, 
   const double len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
   normal = len > 0 ? Vec3d{sign * n[0] / len, sign * n[1] / len, sign * n[2] / len} : Vec3d{0, 0, 1};
   point = {s.x[vertex], s.y[vertex], s.z[vertex]};
+}
+
+bool CouplingPhysics::patch_near(const sim::Model& m, const sim::State& s, const Vec3d& tool_point, Vec3d& point,
+                                 Vec3d& normal) {
+  const Vec3d world{home_[0] + tool_point[0], home_[1] + tool_point[1], home_[2] + tool_point[2]};
+  int32_t vertex = -1;
+  nearest_surface(m, s, world, point, normal, vertex);
+  if (vertex >= 0) patch(m, s, vertex, patch_scratch_);
+  return vertex >= 0;
 }
 
 void CouplingPhysics::patch(const sim::Model& m, const sim::State& s, int32_t vertex, std::vector<int32_t>& out) const {

@@ -153,6 +153,9 @@ class CouplingPhysics {
   void nearest_surface(const sim::Model& model, const sim::State& state, const Vec3d& tip_world,
                        Vec3d& point, Vec3d& normal, int32_t& vertex) const;
   void patch(const sim::Model& model, const sim::State& state, int32_t vertex, std::vector<int32_t>& out) const;
+  // The surface point nearest to `tool_point` (tool frame) and its patch into patch_scratch_.
+  bool patch_near(const sim::Model& model, const sim::State& state, const Vec3d& tool_point, Vec3d& point,
+                  Vec3d& normal);
 
   Mode mode_ = Mode::none;
   Vec3d home_{0, 0, 0};
