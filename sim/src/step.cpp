@@ -95,6 +95,7 @@ Work make_work(const Model& m) {
 }
 
 StepReport step(const Model& m, State& s, Work& w) {
+  const FlushDenormals flush;                          // workers.hpp: no float denormal stalls
   StepReport rep;
   engine::begin_tool_step(m, s, w);                    // tool.cpp: free mask, attach targets
 
