@@ -434,7 +434,8 @@ Model compile(const SceneDesc& scene) {
     r.elastica_p = mat.elastica_p;
     r.curvature_unit_m = mat.curvature_unit_m;
     r.elastica_cap = mat.elastica_cap;
-    r.curvature = mat.model == ModelKind::nmsm && mat.elastica_b > 0;
+    r.curvature = mat.model == ModelKind::nmsm && mat.elastica_b > 0;  // rest curvature needed
+    r.elastica_frozen = mat.model == ModelKind::nmsm && !mat.elastica_literal;
     const bool nmsm_plain = mat.model == ModelKind::nmsm && !r.curvature;
     std::vector<double> hvert(m.nvert, 0.0);
     if (r.curvature) {
@@ -467,10 +468,18 @@ Model compile(const SceneDesc& scene) {
       } else if (nmsm_plain) {
         factor = r.elastica_a;
       }
+      if (r.elastica_frozen) {
+        // conservative elastica: k (l_e - l_e0) with the factor at rest is k factor (l - l0)
+        m.spring_k[s] *= factor;
+        m.spring_rest.push_back(m.spring_length0[s]);
+        k_eff.push_back(m.spring_k[s]);
+        continue;
+      }
       m.spring_rest.push_back(m.spring_length0[s] * factor);
       // the stable-step estimate takes the largest factor the cap allows
       k_eff.push_back(m.spring_k[s] * (r.curvature ? r.elastica_a + r.elastica_cap : factor));
     }
+    if (r.elastica_frozen) r.curvature = false;  // no curvature pass per step
 
     // compensation (CMSM; NMSM with tau_s as in Table III)
     r.tau_s = mat.tau_s;
@@ -609,7 +618,11 @@ Model compile(const SceneDesc& scene) {
   for (const OrganRange& r : m.organs) {
     std::string s = "organ '" + r.name + "' [" + to_string(r.model) + "]: " +
                     std::to_string(r.spring_end - r.spring_begin) + " springs";
-    if (r.model == ModelKind::nmsm)
+    if (r.elastica_frozen)
+      s += ", conservative elastica: Hooke springs of stiffness k (a + b |kappa0 L|^p) at the rest "
+           "curvature (b = " + num(r.elastica_b) + ", p = " + std::to_string(r.elastica_p) +
+           "), no curvature pass";
+    else if (r.model == ModelKind::nmsm)
       s += r.curvature ? ", curvature pass (b = " + num(r.elastica_b) + ", p = " +
                              std::to_string(r.elastica_p) + ")"
                        : ", no curvature pass (b = 0: elastica springs reduce to Hooke)";

@@ -113,7 +113,7 @@ __attribute__((noinline)) void assemble_blocks(int32_t begin, int32_t end, const
 
 // Which spring measure an organ uses: 0 Hooke, 1/2 elastica p, 3 elastica with b = 0.
 int spring_measure_kind(const OrganRange& r) {
-  if (r.model != ModelKind::nmsm) return 0;
+  if (r.model != ModelKind::nmsm || r.elastica_frozen) return 0;
   if (!r.curvature) return 3;
   return r.elastica_p;
 }

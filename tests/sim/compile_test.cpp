@@ -71,6 +71,8 @@ TEST(Compile, NoCurvatureWithoutBNoDampingWithoutDNoGravityWhenOff) {
   s.organs[0].material.elastica_b = 0.1;
   s.organs[0].material.damping = -1;
   s.gravity = true;
+  EXPECT_FALSE(sim::compile(s).organs[0].curvature);  // conservative elastica: factor at rest
+  s.organs[0].material.elastica_literal = true;
   const sim::Model m2 = sim::compile(s);
   EXPECT_TRUE(m2.organs[0].curvature);
   EXPECT_TRUE(m2.organs[0].damping);

@@ -56,6 +56,13 @@ struct Material {
   // the elastica length (and with it the spring's stiffness) explodes and no explicit step is
   // stable (docs/physics.md).
   double elastica_cap = 2.0;
+  // false (default): the conservative elastica. 000 eq 5's factor a + b |kappa L|^p is taken at
+  // the rest curvature, so each spring is Hooke with stiffness k (a + b |kappa0 L|^p): the force
+  // is the gradient of E = 1/2 k_e (l - l0)^2 and an unloaded organ cannot gain energy.
+  // true: the paper's literal form, curvature of the deformed shape every step; its force acts
+  // along the spring only and is not the gradient of any energy, so at rest it can feed energy in
+  // (1-5 mm drift from a 1 um perturbation, docs/physics.md). Kept to reproduce paper 000's tables.
+  bool elastica_literal = false;
   double tau_s = -1.0;               // over-stretch ratio; < 0 = off
   double tau_c = -1.0;               // over-compress ratio; < 0 = off
   int compensation_iterations = 4;   // inner iterations of the compensation (CMSM)
@@ -118,7 +125,8 @@ struct OrganRange {
   int compensation_iterations = 0;
   double volume_stiffness = 0.0;
   double rest_volume_m3 = 0.0;
-  bool curvature = false;           // needs the curvature pass (nmsm with b > 0)
+  bool curvature = false;           // needs the curvature pass (literal nmsm with b > 0)
+  bool elastica_frozen = false;     // conservative nmsm: compiled to Hooke springs of k (a + ...)
   bool damping = false;             // any spring with d > 0
   bool has_fixed = false;
 };
