@@ -45,6 +45,8 @@ void check_material(const SceneDesc& scene, size_t o) {
   require(std::isfinite(m.damping) && m.damping >= -1.0, where("damping"),
           "expected a damping >= 0 (or -1 for 000 eq 10), got " + num(m.damping));
   nonneg(m.damping_scale, "damping_scale");
+  require(std::isfinite(m.damping_ratio) && m.damping_ratio >= -1.0, where("damping_ratio"),
+          "expected a damping ratio >= 0 (or -1 for 000 eq 10), got " + num(m.damping_ratio));
   nonneg(m.vertex_mass_kg, "vertex_mass_kg");
   require(std::isfinite(m.elastica_a) && m.elastica_a > 0, where("elastica_a"),
           "expected a > 0 (000 eq 5), got " + num(m.elastica_a));
@@ -418,9 +420,10 @@ Model compile(const SceneDesc& scene) {
         if (lens[s] < min_len) ++capped_springs;
         k = lloyd_stiffness(mat.young_modulus_pa, mat.thickness_m, e.area, l);
       }
-      const double d = mat.damping >= 0
-                           ? mat.damping
-                           : mat.damping_scale * spring_damping(k, m.vert_mass[e.a], m.vert_mass[e.b]);
+      const double ma = m.vert_mass[e.a], mb = m.vert_mass[e.b];
+      const double d = mat.damping >= 0        ? mat.damping
+                       : mat.damping_ratio >= 0 ? mat.damping_ratio * 2.0 * std::sqrt(k * ma * mb / std::max(ma + mb, 1e-300))
+                                                : mat.damping_scale * spring_damping(k, ma, mb);
       m.spring_k.push_back(k);
       m.spring_d.push_back(d);
       r.damping = r.damping || d > 0;

@@ -43,6 +43,10 @@ struct Material {
   double stiffness = 0.0;            // > 0: every spring gets this k (N/m) instead of 000 eq 9
   double damping = -1.0;             // >= 0: every spring gets this d (N s/m) instead of 000 eq 10
   double damping_scale = 1.0;        // multiplies 000 eq 10
+  // >= 0: every spring gets the damping ratio zeta of its own two-vertex mode instead of 000 eq 10,
+  // d = zeta 2 sqrt(k m_a m_b / (m_a + m_b)) (zeta = 1: critical). 000 eq 10 as used is
+  // zeta = (m_a + m_b) / sqrt(m_a m_b) >= 2, larger on small vertices (docs/physics.md).
+  double damping_ratio = -1.0;
   double vertex_mass_kg = 0.0;       // > 0: every vertex gets this mass instead of 000 eq 8
   double elastica_a = 1.0;           // 000 eq 5
   double elastica_b = 0.1;           // 000 eq 5; 0 turns the curvature pass off for this organ
