@@ -183,7 +183,7 @@ RestoreResult run_restore(const sim::SceneDesc& scene, const std::string& organ_
 int bench_restore(const std::vector<std::string>& args) {
   CLI::App app{"softatlas bench restore: rest drift, pull 30 mm, release, residual shape error"};
   std::string set_dir, organ, model_name, integrator_name;
-  double pull_mm = 30.0, dt = -1.0, damping_ratio = -1.0;
+  double pull_mm = 30.0, dt = -1.0, damping_ratio = -1.0, flexion_stiffness = -1.0;
   int threads = 1;
   bool json_out = false, no_sleep = false;
   app.add_option("set", set_dir, "organ-set folder")->required();
@@ -195,6 +195,8 @@ int bench_restore(const std::vector<std::string>& args) {
   app.add_option("--threads", threads, "worker threads")->check(CLI::Range(1, 64));
   app.add_option("--damping-ratio", damping_ratio, "every spring's damping ratio (default: 000 eq 10)")
       ->check(CLI::Range(0.0, 100.0));
+  app.add_option("--flexion-stiffness", flexion_stiffness, "flexion model: dihedral spring stiffness (N m / rad)")
+      ->check(CLI::Range(0.0, 1e3));
   app.add_flag("--no-sleep", no_sleep, "resting organs are not put to sleep");
   app.add_flag("--json", json_out, "print one JSON object");
   if (int rc = parse_args(app, args, 2); rc >= 0) return rc;
@@ -210,6 +212,8 @@ int bench_restore(const std::vector<std::string>& args) {
   if (no_sleep) scene.allow_sleep = false;
   if (damping_ratio >= 0)
     for (sim::OrganDesc& o : scene.organs) o.material.damping_ratio = damping_ratio;
+  if (flexion_stiffness >= 0)
+    for (sim::OrganDesc& o : scene.organs) o.material.flexion_stiffness = flexion_stiffness;
   RestoreOptions opt;
   opt.pull_m = pull_mm * 1e-3;
   opt.progress = true;
