@@ -20,9 +20,9 @@ namespace softatlas::sim {
 // concentrated where the load is; elsewhere its entries are tiny and their squares (r . z) fall
 // below float's 1.2e-38, where x86 takes a microcode assist of about 100 cycles per operation:
 // perf put 84 % of cg_update on one vfmadd231ps and the implicit step cost 19.5x a bench-ref
-// TMSM step (docs/performance.md). Values that small are far below the CG's float floor
-// (1e-7 relative), so flushing them changes nothing the solve can resolve. The caller's mode is
-// restored when the scope ends. Other targets (wasm, ARM) keep their default mode.
+// TMSM step (docs/physics.md, "Float denormals"). Values that small are far below the CG's float
+// floor (1e-7 relative), so flushing them changes nothing the solve can resolve. The caller's
+// mode is restored when the scope ends. Other targets (wasm, ARM) keep their default mode.
 class FlushDenormals {
  public:
   FlushDenormals() {
