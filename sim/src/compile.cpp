@@ -8,6 +8,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "forces.hpp"
 #include "softatlas/sim/sim.hpp"
 
 namespace softatlas::sim {
@@ -42,14 +43,16 @@ void check_material(const SceneDesc& scene, size_t o) {
           "expected a positive density, got " + num(m.density_kg_m3));
   nonneg(m.stiffness, "stiffness");
   require(std::isfinite(m.damping) && m.damping >= -1.0, where("damping"),
-          "expected a damping >= 0 (or -1 for eq 10), got " + num(m.damping));
+          "expected a damping >= 0 (or -1 for 000 eq 10), got " + num(m.damping));
   nonneg(m.damping_scale, "damping_scale");
+  require(std::isfinite(m.damping_ratio) && m.damping_ratio >= -1.0, where("damping_ratio"),
+          "expected a damping ratio >= 0 (or -1 for 000 eq 10), got " + num(m.damping_ratio));
   nonneg(m.vertex_mass_kg, "vertex_mass_kg");
   require(std::isfinite(m.elastica_a) && m.elastica_a > 0, where("elastica_a"),
-          "expected a > 0 (eq 5), got " + num(m.elastica_a));
+          "expected a > 0 (000 eq 5), got " + num(m.elastica_a));
   nonneg(m.elastica_b, "elastica_b");
   require(m.elastica_p == 1 || m.elastica_p == 2, where("elastica_p"),
-          "expected p = 1 or 2 (eq 5), got " + std::to_string(m.elastica_p));
+          "expected p = 1 or 2 (000 eq 5), got " + std::to_string(m.elastica_p));
   require(std::isfinite(m.curvature_unit_m) && m.curvature_unit_m > 0, where("curvature_unit_m"),
           "expected a positive length, got " + num(m.curvature_unit_m));
   require(std::isfinite(m.elastica_cap) && m.elastica_cap > 0, where("elastica_cap"),
@@ -344,7 +347,7 @@ Model compile(const SceneDesc& scene) {
     const double* Z = m.vert_rest_z.data();
     const int32_t* F = m.face_vert.data();
 
-    // masses (eq 8)
+    // masses (000 eq 8)
     m.vert_mass.resize(m.nvert, 0.0);
     const double area = surface_area(X, Y, Z, F, r.face_begin, r.face_end);
     const double volume = std::abs(enclosed_volume(X, Y, Z, F, r.face_begin, r.face_end));
@@ -355,7 +358,7 @@ Model compile(const SceneDesc& scene) {
       double total = mat.total_mass_kg;
       if (!(total > 0)) {
         total = mat.density_kg_m3 * volume;
-        if (!(total > 0)) {  // open or flat surface: a shell of the eq 9 thickness
+        if (!(total > 0)) {  // open or flat surface: a shell of the 000 eq 9 thickness
           total = mat.density_kg_m3 * area * mat.thickness_m;
           m.plan.push_back("organ '" + od.name +
                            "': encloses no volume; mass from area x thickness x density");
@@ -367,7 +370,7 @@ Model compile(const SceneDesc& scene) {
     for (size_t f = 0; f < nf; ++f)
       if (!(surface_area(X, Y, Z, F, r.face_begin + f, r.face_begin + f + 1) > 0)) ++degenerate_faces;
 
-    // springs = unique edges, sorted by (a, b); face area sum per edge (eq 9)
+    // springs = unique edges, sorted by (a, b); face area sum per edge (000 eq 9)
     struct Edge { int32_t a, b; double area; int faces; int32_t wing[2]; };
     std::vector<Edge> edges;
     edges.reserve(3 * nf);
@@ -393,7 +396,7 @@ Model compile(const SceneDesc& scene) {
         unique.push_back(e);
       }
     }
-    // median edge length: near-zero edges get their eq 9 denominator capped at 1e-3 of it
+    // median edge length: near-zero edges get their 000 eq 9 denominator capped at 1e-3 of it
     std::vector<double> lens(unique.size());
     for (size_t s = 0; s < unique.size(); ++s) {
       const int32_t a = unique[s].a, b = unique[s].b;
@@ -417,9 +420,10 @@ Model compile(const SceneDesc& scene) {
         if (lens[s] < min_len) ++capped_springs;
         k = lloyd_stiffness(mat.young_modulus_pa, mat.thickness_m, e.area, l);
       }
-      const double d = mat.damping >= 0
-                           ? mat.damping
-                           : mat.damping_scale * spring_damping(k, m.vert_mass[e.a], m.vert_mass[e.b]);
+      const double ma = m.vert_mass[e.a], mb = m.vert_mass[e.b];
+      const double d = mat.damping >= 0        ? mat.damping
+                       : mat.damping_ratio >= 0 ? mat.damping_ratio * 2.0 * std::sqrt(k * ma * mb / std::max(ma + mb, 1e-300))
+                                                : mat.damping_scale * spring_damping(k, ma, mb);
       m.spring_k.push_back(k);
       m.spring_d.push_back(d);
       r.damping = r.damping || d > 0;
@@ -433,7 +437,8 @@ Model compile(const SceneDesc& scene) {
     r.elastica_p = mat.elastica_p;
     r.curvature_unit_m = mat.curvature_unit_m;
     r.elastica_cap = mat.elastica_cap;
-    r.curvature = mat.model == ModelKind::nmsm && mat.elastica_b > 0;
+    r.curvature = mat.model == ModelKind::nmsm && mat.elastica_b > 0;  // rest curvature needed
+    r.elastica_frozen = mat.model == ModelKind::nmsm && !mat.elastica_literal;
     const bool nmsm_plain = mat.model == ModelKind::nmsm && !r.curvature;
     std::vector<double> hvert(m.nvert, 0.0);
     if (r.curvature) {
@@ -445,8 +450,7 @@ Model compile(const SceneDesc& scene) {
       mean_curvature_from_laplacian(nvo, lx.data() + r.vert_begin, ly.data() + r.vert_begin,
                                     lz.data() + r.vert_begin, a2.data() + r.vert_begin,
                                     kap.data() + r.vert_begin);
-      const double coef = r.elastica_p == 1 ? 0.5 * r.elastica_b * r.curvature_unit_m
-                                            : 0.5 * std::sqrt(r.elastica_b) * r.curvature_unit_m;
+      const double coef = kernels::elastica_vertex_coef(r.elastica_p, r.elastica_b, r.curvature_unit_m);
       for (int32_t v = r.vert_begin; v < r.vert_end; ++v) hvert[v] = coef * kap[v];
     }
     if (r.curvature) {
@@ -455,7 +459,7 @@ Model compile(const SceneDesc& scene) {
       double rest_max = 0.0;
       for (int32_t s = r.spring_begin; s < r.spring_end; ++s) {
         const double h = hvert[m.spring_a[s]] + hvert[m.spring_b[s]];
-        rest_max = std::max(rest_max, r.elastica_p == 1 ? h : h * h);
+        rest_max = std::max(rest_max, kernels::elastica_term(r.elastica_p, h));
       }
       r.elastica_cap = mat.elastica_cap + rest_max;
     }
@@ -463,15 +467,22 @@ Model compile(const SceneDesc& scene) {
       const int32_t a = m.spring_a[s], b = m.spring_b[s];
       double factor = 1.0;
       if (r.curvature) {
-        const double h = hvert[a] + hvert[b];
-        factor = r.elastica_a + std::min(r.elastica_p == 1 ? h : h * h, r.elastica_cap);
+        factor = kernels::elastica_factor(r.elastica_p, r.elastica_a, hvert[a] + hvert[b], r.elastica_cap);
       } else if (nmsm_plain) {
         factor = r.elastica_a;
+      }
+      if (r.elastica_frozen) {
+        // conservative elastica: k (l_e - l_e0) with the factor at rest is k factor (l - l0)
+        m.spring_k[s] *= factor;
+        m.spring_rest.push_back(m.spring_length0[s]);
+        k_eff.push_back(m.spring_k[s]);
+        continue;
       }
       m.spring_rest.push_back(m.spring_length0[s] * factor);
       // the stable-step estimate takes the largest factor the cap allows
       k_eff.push_back(m.spring_k[s] * (r.curvature ? r.elastica_a + r.elastica_cap : factor));
     }
+    if (r.elastica_frozen) r.curvature = false;  // no curvature pass per step
 
     // compensation (CMSM; NMSM with tau_s as in Table III)
     r.tau_s = mat.tau_s;
@@ -610,7 +621,11 @@ Model compile(const SceneDesc& scene) {
   for (const OrganRange& r : m.organs) {
     std::string s = "organ '" + r.name + "' [" + to_string(r.model) + "]: " +
                     std::to_string(r.spring_end - r.spring_begin) + " springs";
-    if (r.model == ModelKind::nmsm)
+    if (r.elastica_frozen)
+      s += ", conservative elastica: Hooke springs of stiffness k (a + b |kappa0 L|^p) at the rest "
+           "curvature (b = " + num(r.elastica_b) + ", p = " + std::to_string(r.elastica_p) +
+           "), no curvature pass";
+    else if (r.model == ModelKind::nmsm)
       s += r.curvature ? ", curvature pass (b = " + num(r.elastica_b) + ", p = " +
                              std::to_string(r.elastica_p) + ")"
                        : ", no curvature pass (b = 0: elastica springs reduce to Hooke)";
@@ -642,7 +657,7 @@ Model compile(const SceneDesc& scene) {
   }
   if (capped_springs)
     line(std::to_string(capped_springs) +
-         " near-zero-length springs: eq 9 stiffness capped (length floor 1e-3 x median edge)");
+         " near-zero-length springs: 000 eq 9 stiffness capped (length floor 1e-3 x median edge)");
   if (degenerate_faces)
     line(std::to_string(degenerate_faces) + " zero-area faces: no curvature or mass contribution");
   if (m.allow_sleep) line("resting organs sleep until touched");

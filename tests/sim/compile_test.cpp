@@ -71,10 +71,26 @@ TEST(Compile, NoCurvatureWithoutBNoDampingWithoutDNoGravityWhenOff) {
   s.organs[0].material.elastica_b = 0.1;
   s.organs[0].material.damping = -1;
   s.gravity = true;
+  EXPECT_FALSE(sim::compile(s).organs[0].curvature);  // conservative elastica: factor at rest
+  s.organs[0].material.elastica_literal = true;
   const sim::Model m2 = sim::compile(s);
   EXPECT_TRUE(m2.organs[0].curvature);
   EXPECT_TRUE(m2.organs[0].damping);
   EXPECT_TRUE(m2.gravity);
+}
+
+TEST(Compile, DampingRatioGivesCriticalDampingOfEachSpringsTwoVertexMode) {
+  sim::SceneDesc s;
+  s.organs.push_back(test::organ("liver", test::icosphere(2, 0.05)));
+  s.organs[0].material.model = sim::ModelKind::tmsm;
+  s.organs[0].material.damping_ratio = 0.5;
+  const sim::Model m = sim::compile(s);
+  for (int32_t q = 0; q < m.nspring; q += 13) {
+    const double ma = m.vert_mass[m.spring_a[q]], mb = m.vert_mass[m.spring_b[q]];
+    EXPECT_NEAR(m.spring_d[q], 0.5 * 2.0 * std::sqrt(m.spring_k[q] * ma * mb / (ma + mb)), 1e-12 * m.spring_d[q]);
+  }
+  s.organs[0].material.damping_ratio = -2.0;
+  EXPECT_THROW(sim::compile(s), InputError);
 }
 
 TEST(Compile, TmsmHasNoCurvaturePass) {

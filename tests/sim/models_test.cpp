@@ -18,6 +18,7 @@ TEST(Nmsm, RestElasticaLengthUsesRestCurvature) {
   s.organs[0].material.elastica_a = 1.0;
   s.organs[0].material.elastica_b = 0.2;
   s.organs[0].material.curvature_unit_m = 1e-3;
+  s.organs[0].material.elastica_literal = true;
   const sim::Model m = sim::compile(s);
   double worst = 0, mean = 0;
   for (int32_t q = 0; q < m.nspring; ++q) {
@@ -29,6 +30,16 @@ TEST(Nmsm, RestElasticaLengthUsesRestCurvature) {
   // off by a few per cent at this resolution.
   EXPECT_LT(mean, 0.02) << "curvature term within 2 % of b L / r on average";
   EXPECT_LT(worst, 0.10);
+  // The conservative form keeps the same factor as the stiffness of a Hooke spring at l0.
+  s.organs[0].material.elastica_literal = false;
+  const sim::Model c = sim::compile(s);
+  ASSERT_EQ(c.nspring, m.nspring);
+  for (int32_t q = 0; q < m.nspring; q += 17) {
+    EXPECT_DOUBLE_EQ(c.spring_rest[q], c.spring_length0[q]);
+    EXPECT_NEAR(c.spring_k[q] / m.spring_k[q], m.spring_rest[q] / m.spring_length0[q], 1e-12);
+  }
+  EXPECT_FALSE(c.organs[0].curvature);
+  EXPECT_TRUE(c.organs[0].elastica_frozen);
 }
 
 TEST(Cmsm, CompensationKeepsSpringsWithinTheirRatios) {

@@ -53,6 +53,7 @@ TEST(Paper000, SphereTensileTestReachesEquilibriumWithMatchingFeedback) {
       o.material.elastica_a = 1.0;
       o.material.elastica_b = 0.5;
       o.material.elastica_p = 2;          // p = 2 for the sphere (section III)
+      o.material.elastica_literal = true; // the paper's form of 000 eq 5
       o.material.curvature_unit_m = 1.0;  // dimensionless sphere
       o.fixed = lowest(o, 10);
       // Paper's Verlet scheme; the guard sub-steps the stiff damping (d = 100 on unit masses).
@@ -97,6 +98,7 @@ sim::SceneDesc liver1000(sim::ModelKind model, double b) {
   o.material.elastica_a = 1.0;
   o.material.elastica_b = b;
   o.material.elastica_p = 1;            // p = 1 for the liver
+  o.material.elastica_literal = true;   // the paper's form of 000 eq 5
   o.material.tau_s = model == sim::ModelKind::cmsm ? 0.0 : -1.0;
   o.fixed = lowest(o, 20);
   s.integrator = sim::Integrator::semi_implicit;

@@ -68,18 +68,37 @@ const Config kConfigs[] = {
     {sim::ModelKind::flexion, 1, sim::Integrator::implicit},
 };
 
-TEST(Step, RestShapeStaysAtRestForEveryModelAndIntegrator) {
+void perturb(sim::State& s, double amount, unsigned seed);  // below
+
+// Every model starts 1 um off its rest shape (each coordinate, random, fixed seed): a model that
+// feeds energy in drifts away (the paper's literal elastica drifts 1-5 mm from 1 um).
+TEST(Step, RestShapeStaysAtRestFromAPerturbedStateForEveryModelAndIntegrator) {
   for (const Config& c : kConfigs) {
     const sim::Model m = sim::compile(sphere_scene(c));
     sim::State s = sim::make_state(m);
     sim::Work w = sim::make_work(m);
+    perturb(s, 1e-6, 3);
     for (int k = 0; k < 10000; ++k) sim::step(m, s, w);
-    EXPECT_LT(sim::max_displacement(m, s), 1e-9 * m.size_m)
+    EXPECT_LT(sim::max_displacement(m, s), 5e-6)
         << sim::to_string(c.model) << " p=" << c.p << " " << sim::to_string(c.integrator);
   }
 }
 
-TEST(Step, RestShapeOfARealLiverIsForceFreeWithElastica) {
+TEST(Step, RestShapeOfARealLiverIsForceFreeWithTheLiteralElastica) {
+  test::Mesh liver = test::read_obj(test::project_data("meshes/liver_1000.obj"));
+  sim::SceneDesc s;
+  s.organs.push_back(test::organ("liver", liver, 1e-3));
+  s.organs[0].material.elastica_b = 0.5;
+  s.organs[0].material.elastica_literal = true;
+  s.allow_sleep = false;
+  const sim::Model m = sim::compile(s);
+  sim::State st = sim::make_state(m);
+  sim::Work w = sim::make_work(m);
+  for (int k = 0; k < 10000; ++k) sim::step(m, st, w);
+  EXPECT_LT(sim::max_displacement(m, st), 1e-9 * m.size_m);
+}
+
+TEST(Step, ConservativeElasticaLiverStaysPutFromAPerturbedRest) {
   test::Mesh liver = test::read_obj(test::project_data("meshes/liver_1000.obj"));
   sim::SceneDesc s;
   s.organs.push_back(test::organ("liver", liver, 1e-3));
@@ -88,8 +107,9 @@ TEST(Step, RestShapeOfARealLiverIsForceFreeWithElastica) {
   const sim::Model m = sim::compile(s);
   sim::State st = sim::make_state(m);
   sim::Work w = sim::make_work(m);
+  perturb(st, 1e-6, 5);
   for (int k = 0; k < 10000; ++k) sim::step(m, st, w);
-  EXPECT_LT(sim::max_displacement(m, st), 1e-9 * m.size_m);
+  EXPECT_LT(sim::max_displacement(m, st), 5e-6);
 }
 
 // E = sum 1/2 k (l - l0)^2 + sum 1/2 kf (theta - theta0)^2
@@ -142,6 +162,37 @@ TEST(Step, SpringForcesAreMinusTheEnergyGradient) {
     }
     EXPECT_LT(max_err, 1e-5 * max_f) << sim::to_string(kind) << " max |f| " << max_f;
   }
+}
+
+
+double kinetic(const sim::Model& m, const sim::State& s) {
+  double e = 0;
+  for (int32_t v = 0; v < m.nvert; ++v)
+    e += 0.5 * m.vert_mass[v] * (s.vx[v] * s.vx[v] + s.vy[v] * s.vy[v] + s.vz[v] * s.vz[v]);
+  return e;
+}
+
+// The conservative models (Hooke, the conservative elastica, flexion springs) with their damping:
+// over a long unloaded run from a perturbed shape the energy never rises above where it started
+// (no external work), and the damping takes nearly all of it away.
+TEST(Step, ConservativeModelsNeverGainEnergyWithoutExternalWork) {
+  for (sim::ModelKind kind : {sim::ModelKind::tmsm, sim::ModelKind::nmsm, sim::ModelKind::flexion})
+    for (sim::Integrator integ : {sim::Integrator::semi_implicit, sim::Integrator::implicit}) {
+      sim::SceneDesc scene = sphere_scene({kind, 1, integ});
+      scene.organs[0].material.volume_stiffness = 0.0;  // a projection, not a potential
+      const sim::Model m = sim::compile(scene);
+      sim::State s = sim::make_state(m);
+      sim::Work w = sim::make_work(m);
+      perturb(s, 1e-3, 11);
+      const double e0 = potential(m, s);
+      double e_max = 0, e = e0;
+      for (int k = 0; k < 20000; ++k) {
+        sim::step(m, s, w);
+        if (k % 10 == 0) e = potential(m, s) + kinetic(m, s), e_max = std::max(e_max, e);
+      }
+      EXPECT_LE(e_max, e0 * (1 + 1e-6)) << sim::to_string(kind) << " " << sim::to_string(integ);
+      EXPECT_LT(e, 1e-3 * e0) << sim::to_string(kind) << " " << sim::to_string(integ);
+    }
 }
 
 TEST(Step, InternalForcesHaveZeroSumAndZeroTorque) {
