@@ -376,7 +376,7 @@ void constraint_passes(const Model& m, State& s, Work& w, double h) {
 void set_free_mask(const Model& m, const State& s, Work& w) {
   const bool attach = s.tool.mode == ToolMode::attach;
   if (!attach && !w.mask_dirty) return;
-  for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 ? 1.0 : 0.0;
+  for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 && !solid_vertex(m, v) ? 1.0 : 0.0;
   if (attach)
     for (int32_t v : s.tool.verts) w.free_mask[v] = 0.0;
   w.mask_dirty = attach;
@@ -1043,6 +1043,7 @@ State make_state(const Model& m) {
   s.vx.assign(m.nvert, 0.0), s.vy.assign(m.nvert, 0.0), s.vz.assign(m.nvert, 0.0);
   s.organ_awake.assign(m.organs.size(), 1);
   s.organ_still_steps.assign(m.organs.size(), 0);
+  init_solid_state(m, s);
   return s;
 }
 
@@ -1116,7 +1117,8 @@ Work make_work(const Model& m) {
     }
   }
   w.tool_target.reserve(3 * n);  // attach() may hold any number of vertices up to all
-  for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 ? 1.0 : 0.0;
+  for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 && !solid_vertex(m, v) ? 1.0 : 0.0;
+  w.solid = make_solid_work(m);
   return w;
 }
 
@@ -1148,6 +1150,11 @@ StepReport step(const Model& m, State& s, Work& w) {
       rep.status = StepStatus::substepped;
       rep.message = "guard: time step above the stable estimate, split into sub-steps";
     }
+  }
+  if (!m.solids.empty()) {  // solid organs (solid_step.cpp), after the surface models
+    const SolidStats ss = solid_step(m, s, w);
+    st.max_speed2 = std::max(st.max_speed2, ss.max_speed2);
+    st.checksum += ss.checksum;
   }
   if (s.tool.mode == ToolMode::attach && s.tool.attach_progress < s.tool.attach_iterations)
     ++s.tool.attach_progress;
@@ -1316,9 +1323,9 @@ double max_displacement(const Model& m, const State& s) {
 }
 
 double total_energy(const Model& m, const State& s) {
-  double e = 0;
+  double e = solid_energy(m, s);  // solid organs: their lattice's energy, not their surface's
   for (int32_t v = 0; v < m.nvert; ++v)
-    e += 0.5 * m.vert_mass[v] * (s.vx[v] * s.vx[v] + s.vy[v] * s.vy[v] + s.vz[v] * s.vz[v]);
+    if (!solid_vertex(m, v)) e += 0.5 * m.vert_mass[v] * (s.vx[v] * s.vx[v] + s.vy[v] * s.vy[v] + s.vz[v] * s.vz[v]);
   for (int32_t q = 0; q < m.nspring; ++q) {
     const int32_t a = m.spring_a[q], b = m.spring_b[q];
     const double dx = s.x[b] - s.x[a], dy = s.y[b] - s.y[a], dz = s.z[b] - s.z[a];
@@ -1333,7 +1340,7 @@ double total_energy(const Model& m, const State& s) {
   }
   if (m.gravity)
     for (int32_t v = 0; v < m.nvert; ++v)
-      e -= m.vert_mass[v] * (m.gravity_m_s2[0] * (s.x[v] - m.vert_rest_x[v]) +
+      if (!solid_vertex(m, v)) e -= m.vert_mass[v] * (m.gravity_m_s2[0] * (s.x[v] - m.vert_rest_x[v]) +
                              m.gravity_m_s2[1] * (s.y[v] - m.vert_rest_y[v]) +
                              m.gravity_m_s2[2] * (s.z[v] - m.vert_rest_z[v]));
   return e;
