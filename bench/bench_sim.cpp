@@ -219,9 +219,11 @@ int sim_explain(const std::vector<std::string>& args) {
 }  // namespace
 
 int physics_demo(const std::vector<std::string>& args);
+int bench_restore(const std::vector<std::string>& args);  // bench_restore.cpp
 
 int cli_main(const std::vector<std::string>& args) {
   if (args.size() >= 2 && args[0] == "bench" && args[1] == "sim") return bench_sim(args);
+  if (args.size() >= 2 && args[0] == "bench" && args[1] == "restore") return bench_restore(args);
   if (args.size() >= 2 && args[0] == "sim" && args[1] == "demo") return physics_demo(args);
   if (!args.empty() && args[0] == "sim") return sim_explain(args);
   std::fprintf(stderr, "softatlas: unknown bench command\n");

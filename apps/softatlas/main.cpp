@@ -34,6 +34,7 @@ constexpr const char* kUsage = R"(usage: softatlas <command> [options]
   lesson run LESSON --device SCRIPT --out DIR
   sim SET|MESH... --explain             print the compiled physics plan
   bench sim --mesh A.obj [B.obj ...] --model tmsm|cmsm|nmsm --integrator I --steps N --json
+  bench restore SET --organ NAME [--pull-mm 30] [--model M] --json
   bench pipeline|render|haptic ... --json
   bench accuracy|stability [--quick] --out DIR
 
@@ -102,7 +103,7 @@ int dispatch(const std::vector<std::string>& args) {
   const std::string& cmd = args[0];
   const std::string sub = args.size() > 1 ? args[1] : "";
   if (cmd == "demo") return demo(args);
-  if (cmd == "bench" && (sub == "sim")) return softatlas::bench::cli_main(args);
+  if (cmd == "bench" && (sub == "sim" || sub == "restore")) return softatlas::bench::cli_main(args);
   if (cmd == "sim") return softatlas::bench::cli_main(args);
   if (cmd == "bench" && (sub == "accuracy" || sub == "stability")) {
 #ifdef SOFTATLAS_HAVE_EVIDENCE

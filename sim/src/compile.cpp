@@ -8,6 +8,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "forces.hpp"
 #include "softatlas/sim/sim.hpp"
 
 namespace softatlas::sim {
@@ -42,14 +43,14 @@ void check_material(const SceneDesc& scene, size_t o) {
           "expected a positive density, got " + num(m.density_kg_m3));
   nonneg(m.stiffness, "stiffness");
   require(std::isfinite(m.damping) && m.damping >= -1.0, where("damping"),
-          "expected a damping >= 0 (or -1 for eq 10), got " + num(m.damping));
+          "expected a damping >= 0 (or -1 for 000 eq 10), got " + num(m.damping));
   nonneg(m.damping_scale, "damping_scale");
   nonneg(m.vertex_mass_kg, "vertex_mass_kg");
   require(std::isfinite(m.elastica_a) && m.elastica_a > 0, where("elastica_a"),
-          "expected a > 0 (eq 5), got " + num(m.elastica_a));
+          "expected a > 0 (000 eq 5), got " + num(m.elastica_a));
   nonneg(m.elastica_b, "elastica_b");
   require(m.elastica_p == 1 || m.elastica_p == 2, where("elastica_p"),
-          "expected p = 1 or 2 (eq 5), got " + std::to_string(m.elastica_p));
+          "expected p = 1 or 2 (000 eq 5), got " + std::to_string(m.elastica_p));
   require(std::isfinite(m.curvature_unit_m) && m.curvature_unit_m > 0, where("curvature_unit_m"),
           "expected a positive length, got " + num(m.curvature_unit_m));
   require(std::isfinite(m.elastica_cap) && m.elastica_cap > 0, where("elastica_cap"),
@@ -345,7 +346,7 @@ Model compile(const SceneDesc& scene) {
     const double* Z = m.vert_rest_z.data();
     const int32_t* F = m.face_vert.data();
 
-    // masses (eq 8)
+    // masses (000 eq 8)
     m.vert_mass.resize(m.nvert, 0.0);
     const double area = surface_area(X, Y, Z, F, r.face_begin, r.face_end);
     const double volume = std::abs(enclosed_volume(X, Y, Z, F, r.face_begin, r.face_end));
@@ -356,7 +357,7 @@ Model compile(const SceneDesc& scene) {
       double total = mat.total_mass_kg;
       if (!(total > 0)) {
         total = mat.density_kg_m3 * volume;
-        if (!(total > 0)) {  // open or flat surface: a shell of the eq 9 thickness
+        if (!(total > 0)) {  // open or flat surface: a shell of the 000 eq 9 thickness
           total = mat.density_kg_m3 * area * mat.thickness_m;
           m.plan.push_back("organ '" + od.name +
                            "': encloses no volume; mass from area x thickness x density");
@@ -368,7 +369,7 @@ Model compile(const SceneDesc& scene) {
     for (size_t f = 0; f < nf; ++f)
       if (!(surface_area(X, Y, Z, F, r.face_begin + f, r.face_begin + f + 1) > 0)) ++degenerate_faces;
 
-    // springs = unique edges, sorted by (a, b); face area sum per edge (eq 9)
+    // springs = unique edges, sorted by (a, b); face area sum per edge (000 eq 9)
     struct Edge { int32_t a, b; double area; int faces; int32_t wing[2]; };
     std::vector<Edge> edges;
     edges.reserve(3 * nf);
@@ -394,7 +395,7 @@ Model compile(const SceneDesc& scene) {
         unique.push_back(e);
       }
     }
-    // median edge length: near-zero edges get their eq 9 denominator capped at 1e-3 of it
+    // median edge length: near-zero edges get their 000 eq 9 denominator capped at 1e-3 of it
     std::vector<double> lens(unique.size());
     for (size_t s = 0; s < unique.size(); ++s) {
       const int32_t a = unique[s].a, b = unique[s].b;
@@ -447,8 +448,7 @@ Model compile(const SceneDesc& scene) {
       mean_curvature_from_laplacian(nvo, lx.data() + r.vert_begin, ly.data() + r.vert_begin,
                                     lz.data() + r.vert_begin, a2.data() + r.vert_begin,
                                     kap.data() + r.vert_begin);
-      const double coef = r.elastica_p == 1 ? 0.5 * r.elastica_b * r.curvature_unit_m
-                                            : 0.5 * std::sqrt(r.elastica_b) * r.curvature_unit_m;
+      const double coef = kernels::elastica_vertex_coef(r.elastica_p, r.elastica_b, r.curvature_unit_m);
       for (int32_t v = r.vert_begin; v < r.vert_end; ++v) hvert[v] = coef * kap[v];
     }
     if (r.curvature) {
@@ -457,7 +457,7 @@ Model compile(const SceneDesc& scene) {
       double rest_max = 0.0;
       for (int32_t s = r.spring_begin; s < r.spring_end; ++s) {
         const double h = hvert[m.spring_a[s]] + hvert[m.spring_b[s]];
-        rest_max = std::max(rest_max, r.elastica_p == 1 ? h : h * h);
+        rest_max = std::max(rest_max, kernels::elastica_term(r.elastica_p, h));
       }
       r.elastica_cap = mat.elastica_cap + rest_max;
     }
@@ -465,8 +465,7 @@ Model compile(const SceneDesc& scene) {
       const int32_t a = m.spring_a[s], b = m.spring_b[s];
       double factor = 1.0;
       if (r.curvature) {
-        const double h = hvert[a] + hvert[b];
-        factor = r.elastica_a + std::min(r.elastica_p == 1 ? h : h * h, r.elastica_cap);
+        factor = kernels::elastica_factor(r.elastica_p, r.elastica_a, hvert[a] + hvert[b], r.elastica_cap);
       } else if (nmsm_plain) {
         factor = r.elastica_a;
       }
@@ -647,7 +646,7 @@ Model compile(const SceneDesc& scene) {
   }
   if (capped_springs)
     line(std::to_string(capped_springs) +
-         " near-zero-length springs: eq 9 stiffness capped (length floor 1e-3 x median edge)");
+         " near-zero-length springs: 000 eq 9 stiffness capped (length floor 1e-3 x median edge)");
   if (degenerate_faces)
     line(std::to_string(degenerate_faces) + " zero-area faces: no curvature or mass contribution");
   if (m.allow_sleep) line("resting organs sleep until touched");

@@ -9,11 +9,26 @@ namespace softatlas::sim::kernels {
 
 constexpr double kTiny = 1e-300;
 
-// Spring and damping forces on springs [begin, end), paper 000 eqs 6-7:
+// 000 eq 5, the elastica factor of a spring (a, b), one source for the force kernel, the implicit
+// blocks and the compiler's rest lengths: l_e = l (a + min(t, cap)) with
+//   t = h_a + h_b (p = 1) or (h_a + h_b)^2 (p = 2),
+// h_v = elastica_vertex_coef(p, b, L) kappa_v the per-vertex half terms (b kappa L / 2 for p = 1,
+// sqrt(b) kappa L / 2 for p = 2, so that t = b kappa L or b (kappa L)^2 for equal curvatures), and
+// cap the organ's cap of the curvature term (Material::elastica_cap above its rest maximum).
+inline double elastica_term(int p, double h_sum) { return p == 1 ? h_sum : h_sum * h_sum; }
+inline double elastica_factor(int p, double a, double h_sum, double cap) {
+  const double t = elastica_term(p, h_sum);
+  return a + (t < cap ? t : cap);
+}
+inline double elastica_vertex_coef(int p, double b, double unit_m) {
+  return p == 1 ? 0.5 * b * unit_m : 0.5 * std::sqrt(b) * unit_m;
+}
+
+// Spring and damping forces on springs [begin, end), 000 eq 6, 000 eq 7:
 //   f_a = [k (l_m - r) + d (v_b - v_a) . u] u,  f_b = -f_a,  u = (x_b - x_a) / l
 // where l_m is the spring measure: l (Hooke, TMSM/CMSM) or the elastica length
 // l_e = l (a + h_a + h_b) (p = 1) / l (a + (h_a + h_b)^2) (p = 2) with h the per-vertex
-// b kappa L / 2 terms (eq 5), P = 3: a l (b = 0), and r the matching rest value (l0 or l_e0).
+// b kappa L / 2 terms (000 eq 5), P = 3: a l (b = 0), and r the matching rest value (l0 or l_e0).
 // The curvature term is capped at `cap` (Material::elastica_cap).
 // noinline: GCC forgets the __restrict promises of an inlined function's parameters, and the
 // loop then reloads positions after every scattered store (measured 1.4x slower).
@@ -32,14 +47,7 @@ __attribute__((noinline)) void spring_forces(int32_t begin, int32_t end, const i
     const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
     const double inv = 1.0 / (l > kTiny ? l : kTiny);
     double measure = l;
-    if constexpr (P == 1) {
-      const double hh = h[i] + h[j];
-      measure = l * (a + (hh < cap ? hh : cap));
-    }
-    if constexpr (P == 2) {
-      const double hh = (h[i] + h[j]) * (h[i] + h[j]);
-      measure = l * (a + (hh < cap ? hh : cap));
-    }
+    if constexpr (P == 1 || P == 2) measure = l * elastica_factor(P, a, h[i] + h[j], cap);
     if constexpr (P == 3) measure = l * a;  // elastica with b = 0
     double f = k[s] * (measure - rest[s]);
     if constexpr (Damped) {

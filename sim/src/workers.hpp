@@ -8,7 +8,43 @@
 #include <thread>
 #include <vector>
 
+#if (defined(__x86_64__) || defined(__i386__)) && defined(__SSE__) && !defined(__EMSCRIPTEN__)
+#include <xmmintrin.h>
+#define SOFTATLAS_SIM_MXCSR 1
+#endif
+
 namespace softatlas::sim {
+
+// Float denormals flushed to zero (FTZ) and read as zero (DAZ) while the physics runs, on the
+// thread that steps and on the worker threads. Near convergence the float CG's residual is
+// concentrated where the load is; elsewhere its entries are tiny and their squares (r . z) fall
+// below float's 1.2e-38, where x86 takes a microcode assist of about 100 cycles per operation:
+// perf put 84 % of cg_update on one vfmadd231ps and the implicit step cost 19.5x a bench-ref
+// TMSM step (docs/performance.md). Values that small are far below the CG's float floor
+// (1e-7 relative), so flushing them changes nothing the solve can resolve. The caller's mode is
+// restored when the scope ends. Other targets (wasm, ARM) keep their default mode.
+class FlushDenormals {
+ public:
+  FlushDenormals() {
+#ifdef SOFTATLAS_SIM_MXCSR
+    saved_ = _mm_getcsr();
+    _mm_setcsr(saved_ | kFtzDaz);
+#endif
+  }
+  ~FlushDenormals() {
+#ifdef SOFTATLAS_SIM_MXCSR
+    _mm_setcsr(saved_);
+#endif
+  }
+  FlushDenormals(const FlushDenormals&) = delete;
+  FlushDenormals& operator=(const FlushDenormals&) = delete;
+
+ private:
+#ifdef SOFTATLAS_SIM_MXCSR
+  static constexpr unsigned kFtzDaz = 0x8040;  // MXCSR bit 15 FTZ, bit 6 DAZ
+  unsigned saved_ = 0;
+#endif
+};
 
 class WorkerPool {
  public:
@@ -46,6 +82,7 @@ class WorkerPool {
 
  private:
   void loop(int t) {
+    const FlushDenormals flush;  // a worker only ever runs physics jobs
     uint64_t seen = 0;
     while (true) {
       uint64_t e;

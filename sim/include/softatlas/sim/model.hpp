@@ -21,7 +21,7 @@ namespace softatlas::sim {
 enum class ModelKind : int32_t {
   tmsm = 0,     // Hooke springs (paper 000 baseline)
   cmsm = 1,     // Hooke + over-stretch / over-compress compensation (Duan et al. 2016)
-  nmsm = 2,     // elastica springs (paper 000 eqs 5-7)
+  nmsm = 2,     // elastica springs (000 eq 5, 000 eq 6, 000 eq 7)
   flexion = 3,  // Hooke + dihedral flexion springs + volume constraint (paper 003)
   solid = 4,    // volumetric lattice, corotational FEM by projective dynamics (sim/solid.hpp)
 };
@@ -39,22 +39,22 @@ bool parse_integrator(const std::string& text, Integrator& out);
 // Per-organ material parameters in the core (already in SI). Defaults match io::MaterialSpec.
 struct Material {
   ModelKind model = ModelKind::nmsm;
-  double young_modulus_pa = 4000.0;  // eq 9
-  double thickness_m = 1e-3;         // eq 9
-  double total_mass_kg = 0.0;        // > 0: eq 8 with this mu; 0: density * enclosed volume
+  double young_modulus_pa = 4000.0;  // 000 eq 9
+  double thickness_m = 1e-3;         // 000 eq 9
+  double total_mass_kg = 0.0;        // > 0: 000 eq 8 with this mu; 0: density * enclosed volume
   double density_kg_m3 = 1060.0;
-  double stiffness = 0.0;            // > 0: every spring gets this k (N/m) instead of eq 9
-  double damping = -1.0;             // >= 0: every spring gets this d (N s/m) instead of eq 10
-  double damping_scale = 1.0;        // multiplies eq 10
-  double vertex_mass_kg = 0.0;       // > 0: every vertex gets this mass instead of eq 8
-  double elastica_a = 1.0;           // eq 5
-  double elastica_b = 0.1;           // eq 5; 0 turns the curvature pass off for this organ
-  int elastica_p = 1;                // eq 5: 1 or 2
-  // Eq 5 adds b |kappa|^p to the dimensionless a, so kappa must be measured in some length unit
+  double stiffness = 0.0;            // > 0: every spring gets this k (N/m) instead of 000 eq 9
+  double damping = -1.0;             // >= 0: every spring gets this d (N s/m) instead of 000 eq 10
+  double damping_scale = 1.0;        // multiplies 000 eq 10
+  double vertex_mass_kg = 0.0;       // > 0: every vertex gets this mass instead of 000 eq 8
+  double elastica_a = 1.0;           // 000 eq 5
+  double elastica_b = 0.1;           // 000 eq 5; 0 turns the curvature pass off for this organ
+  int elastica_p = 1;                // 000 eq 5: 1 or 2
+  // 000 eq 5 adds b |kappa|^p to the dimensionless a, so kappa must be measured in some length unit
   // L: we use b |kappa L|^p. The paper's organ experiments are in mm (L = 1e-3 m); its sphere is
   // dimensionless (L = 1). See docs/physics.md.
   double curvature_unit_m = 1e-3;
-  // How far the curvature term b |kappa L|^p of eq 5 may rise above its largest value in the rest
+  // How far the curvature term b |kappa L|^p of 000 eq 5 may rise above its largest value in the rest
   // shape. A point load makes a cone tip whose discrete curvature grows without bound; uncapped,
   // the elastica length (and with it the spring's stiffness) explodes and no explicit step is
   // stable (docs/physics.md).

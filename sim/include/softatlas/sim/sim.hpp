@@ -19,7 +19,7 @@ namespace softatlas::sim {
 // Builds the Model of a scene, keeping only what it needs: organs that are shown or connected
 // (transitively) to a shown organ; no curvature pass where b = 0 or the model is not nmsm; no
 // damping work where d = 0; no gravity when off; connections to absent organs dropped. Computes
-// masses (eq 8), stiffness (eq 9), damping (eq 10), rest elastica lengths, the stable time step,
+// masses (000 eq 8), stiffness (000 eq 9), damping (000 eq 10), rest elastica lengths, the stable time step,
 // and the plan. Throws InputError (field named) for: empty or invalid meshes, out-of-range
 // indices, non-finite coordinates, negative stiffness/mass/thickness, bad p, bad dt.
 Model compile(const SceneDesc& scene);
