@@ -20,6 +20,7 @@
 #include <Eigen/Sparse>
 #include <Eigen/SparseCholesky>
 
+#include "engine.hpp"
 #include "softatlas/sim/error.hpp"
 #include "softatlas/sim/sim.hpp"
 #include "softatlas/sim/solid.hpp"
@@ -376,6 +377,7 @@ SolidStats solid_step(const Model& m, State& s, Work& work) {
   const double h = m.dt_s;
   ToolState& tool = s.tool;
   std::array<double, 3> reaction{0, 0, 0};
+  if (tool.mode == ToolMode::attach && !tool.verts.empty()) engine::attach_targets(m, s, work, 1.0);  // tool.cpp
   for (size_t bi = 0; bi < m.solids.size(); ++bi) {
     const SolidBody& b = m.solids[bi];
     SolidWork& w = work.solid[bi];
