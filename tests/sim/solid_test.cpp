@@ -233,10 +233,7 @@ struct LiverRun {
 // (e) Without external work the energy never grows: a pulled liver released, 6 s unloaded.
 TEST(SolidModel, EnergyNeverGrowsUnloaded) {
   LiverRun run;
-  const sim::Model& m = run.m;
-  sim::State& s = run.s;
-  sim::Work& w = run.w;
-  const std::vector<int32_t>& grasp = run.grasp;
+  auto& [scene, m, s, w, grasp] = run;
   sim::attach(m, s, grasp, {0.0, 0.02, 0.02}, 60);
   for (int k = 0; k < 100; ++k) sim::step(m, s, w);
   sim::release(s);
@@ -344,10 +341,7 @@ TEST(SolidModel, GraspStiffnessMatchesTheFemReference) {
 // The tool's force mode moves the organ towards the force and the reaction is its opposite.
 TEST(SolidModel, ForcePullMovesAlongTheForce) {
   LiverRun run;
-  const sim::Model& m = run.m;
-  sim::State& s = run.s;
-  sim::Work& w = run.w;
-  const std::vector<int32_t>& grasp = run.grasp;
+  auto& [scene, m, s, w, grasp] = run;
   sim::pull_force(m, s, grasp, {0, 0.2, 0});
   for (int k = 0; k < 600; ++k) sim::step(m, s, w);
   double dy = 0;
