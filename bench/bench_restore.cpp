@@ -122,6 +122,13 @@ RestoreResult run_restore(const sim::SceneDesc& scene, const std::string& organ_
     const double sc = n > 0 ? opt.perturb_m / n : 0.0;
     s.x[v] += sc * d[0], s.y[v] += sc * d[1], s.z[v] += sc * d[2];
   }
+  // solid organs: the lattice nodes are the degrees of freedom (their surface follows them)
+  for (size_t i = 0; i + 2 < s.solid_x.size(); i += 3) {
+    double d[3] = {gauss(rng), gauss(rng), gauss(rng)};
+    const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const double sc = n > 0 ? opt.perturb_m / n : 0.0;
+    for (int c = 0; c < 3; ++c) s.solid_x[i + c] += sc * d[c];
+  }
 
   const double rest_volume = m.organs[organ].rest_volume_m3;
   auto steps_for = [&](double seconds) { return static_cast<int64_t>(std::llround(seconds / m.dt_s)); };

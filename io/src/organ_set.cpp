@@ -54,13 +54,13 @@ void read_material(const std::string& file, const YAML::Node& node, MaterialSpec
   check_keys(file, node,
              {"model", "young_modulus_pa", "thickness_m", "density_kg_m3", "damping_scale",
               "elastica_a", "elastica_b", "elastica_p", "tau_s", "tau_c", "flexion_stiffness",
-              "volume_stiffness"},
+              "volume_stiffness", "poisson_ratio", "damping_ratio", "solid_nodes"},
              "material");
   if (node["model"]) {
     m.model = get<std::string>(file, node["model"], "a model name");
-    if (m.model != "tmsm" && m.model != "cmsm" && m.model != "nmsm" && m.model != "flexion")
+    if (m.model != "tmsm" && m.model != "cmsm" && m.model != "nmsm" && m.model != "flexion" && m.model != "solid")
       throw InputError(at(file, node["model"]),
-                       "unknown model '" + m.model + "' (expected tmsm, cmsm, nmsm or flexion)");
+                       "unknown model '" + m.model + "' (expected tmsm, cmsm, nmsm, flexion or solid)");
   }
   auto num = [&](const char* key, double& out, double lo, bool strict) {
     if (!node[key]) return;
@@ -79,6 +79,16 @@ void read_material(const std::string& file, const YAML::Node& node, MaterialSpec
   num("tau_c", m.tau_c, -1.0, false);
   num("flexion_stiffness", m.flexion_stiffness, 0.0, false);
   num("volume_stiffness", m.volume_stiffness, 0.0, false);
+  num("damping_ratio", m.damping_ratio, 0.0, false);
+  if (node["poisson_ratio"]) {
+    m.poisson_ratio = get_number(file, node["poisson_ratio"], "poisson_ratio");
+    if (!(m.poisson_ratio > -1.0 && m.poisson_ratio < 0.5))
+      throw InputError(at(file, node["poisson_ratio"]), "'poisson_ratio' must lie in (-1, 0.5)");
+  }
+  if (node["solid_nodes"]) {
+    m.solid_nodes = get<int>(file, node["solid_nodes"], "an integer node budget");
+    if (m.solid_nodes < 0) throw InputError(at(file, node["solid_nodes"]), "'solid_nodes' must be >= 0");
+  }
   if (node["elastica_p"]) {
     m.elastica_p = get<int>(file, node["elastica_p"], "an integer p (1 or 2)");
     if (m.elastica_p != 1 && m.elastica_p != 2)
@@ -296,7 +306,11 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
         << ", elastica_b: " << m.elastica_b << ", elastica_p: " << m.elastica_p
         << ", tau_s: " << m.tau_s << ", tau_c: " << m.tau_c
         << ", flexion_stiffness: " << m.flexion_stiffness
-        << ", volume_stiffness: " << m.volume_stiffness << "}\n";
+        << ", volume_stiffness: " << m.volume_stiffness;
+      if (m.model == "solid")
+        y << ", poisson_ratio: " << m.poisson_ratio << ", damping_ratio: " << m.damping_ratio
+          << ", solid_nodes: " << m.solid_nodes;
+      y << "}\n";
       if (!o.fixed_vertices.empty()) {
         y << "    fixed_vertices: [";
         for (size_t i = 0; i < o.fixed_vertices.size(); ++i) y << (i ? ", " : "") << o.fixed_vertices[i];

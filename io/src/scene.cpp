@@ -8,7 +8,7 @@ namespace softatlas::io {
 sim::Material to_sim_material(const MaterialSpec& spec, const std::string& where) {
   sim::Material m;
   if (!sim::parse_model_kind(spec.model, m.model))
-    throw InputError(where, "unknown model '" + spec.model + "' (expected tmsm, cmsm, nmsm or flexion)");
+    throw InputError(where, "unknown model '" + spec.model + "' (expected tmsm, cmsm, nmsm, flexion or solid)");
   m.young_modulus_pa = spec.young_modulus_pa;
   m.thickness_m = spec.thickness_m;
   m.density_kg_m3 = spec.density_kg_m3;
@@ -21,6 +21,9 @@ sim::Material to_sim_material(const MaterialSpec& spec, const std::string& where
   m.tau_c = spec.tau_c;
   m.flexion_stiffness = spec.flexion_stiffness;
   m.volume_stiffness = spec.volume_stiffness;
+  m.poisson_ratio = spec.poisson_ratio;
+  m.damping_ratio = spec.damping_ratio;
+  m.solid_nodes = spec.solid_nodes;
   return m;
 }
 

@@ -180,12 +180,13 @@ const char* to_string(ModelKind kind) {
     case ModelKind::cmsm: return "cmsm";
     case ModelKind::nmsm: return "nmsm";
     case ModelKind::flexion: return "flexion";
+    case ModelKind::solid: return "solid";
   }
   return "?";
 }
 
 bool parse_model_kind(const std::string& text, ModelKind& out) {
-  for (ModelKind k : {ModelKind::tmsm, ModelKind::cmsm, ModelKind::nmsm, ModelKind::flexion})
+  for (ModelKind k : {ModelKind::tmsm, ModelKind::cmsm, ModelKind::nmsm, ModelKind::flexion, ModelKind::solid})
     if (text == to_string(k)) return out = k, true;
   return false;
 }
@@ -408,6 +409,7 @@ Model compile(const SceneDesc& scene) {
     const double median_len = sorted_lens[sorted_lens.size() / 2];
     const double min_len = 1e-3 * median_len;
 
+    if (mat.model == ModelKind::solid) unique.clear();  // no surface springs: sim/solid.hpp
     r.spring_begin = m.nspring;
     for (size_t s = 0; s < unique.size(); ++s) {
       const Edge& e = unique[s];
@@ -609,6 +611,8 @@ Model compile(const SceneDesc& scene) {
     }
   }
 
+  compile_solids(scene, m);  // lattices of the solid organs (solid_step.cpp)
+
   // ---- the plan, in words ----
   std::ostringstream os;
   auto line = [&](const std::string& s) { m.plan.push_back(s); };
@@ -636,6 +640,7 @@ Model compile(const SceneDesc& scene) {
     if (r.flex_end > r.flex_begin) s += ", " + std::to_string(r.flex_end - r.flex_begin) + " flexion springs";
     if (r.volume_stiffness > 0) s += ", volume constraint (stiffness " + num(r.volume_stiffness) + ")";
     if (!r.has_fixed) s += ", no fixed vertices";
+    if (r.model == ModelKind::solid) s += ", " + solid_plan(m.solids[m.organ_solid[&r - m.organs.data()]]);
     line(s);
   }
   line(m.gravity ? "gravity on" : "no gravity pass (gravity off)");

@@ -30,9 +30,9 @@ double max_displacement(const Model& m, const State& s) {
 }
 
 double total_energy(const Model& m, const State& s) {
-  double e = 0;
+  double e = solid_energy(m, s);  // solid organs: their lattice's energy, not their surface's
   for (int32_t v = 0; v < m.nvert; ++v)
-    e += 0.5 * m.vert_mass[v] * (s.vx[v] * s.vx[v] + s.vy[v] * s.vy[v] + s.vz[v] * s.vz[v]);
+    if (!solid_vertex(m, v)) e += 0.5 * m.vert_mass[v] * (s.vx[v] * s.vx[v] + s.vy[v] * s.vy[v] + s.vz[v] * s.vz[v]);
   for (int32_t q = 0; q < m.nspring; ++q) {
     const int32_t a = m.spring_a[q], b = m.spring_b[q];
     const double dx = s.x[b] - s.x[a], dy = s.y[b] - s.y[a], dz = s.z[b] - s.z[a];
@@ -47,7 +47,7 @@ double total_energy(const Model& m, const State& s) {
   }
   if (m.gravity)
     for (int32_t v = 0; v < m.nvert; ++v)
-      e -= m.vert_mass[v] * (m.gravity_m_s2[0] * (s.x[v] - m.vert_rest_x[v]) +
+      if (!solid_vertex(m, v)) e -= m.vert_mass[v] * (m.gravity_m_s2[0] * (s.x[v] - m.vert_rest_x[v]) +
                              m.gravity_m_s2[1] * (s.y[v] - m.vert_rest_y[v]) +
                              m.gravity_m_s2[2] * (s.z[v] - m.vert_rest_z[v]));
   return e;

@@ -17,6 +17,7 @@ State make_state(const Model& m) {
   s.vx.assign(m.nvert, 0.0), s.vy.assign(m.nvert, 0.0), s.vz.assign(m.nvert, 0.0);
   s.organ_awake.assign(m.organs.size(), 1);
   s.organ_still_steps.assign(m.organs.size(), 0);
+  init_solid_state(m, s);                              // solid_step.cpp: lattice nodes at rest
   return s;
 }
 
@@ -90,7 +91,8 @@ Work make_work(const Model& m) {
     }
   }
   w.tool_target.reserve(3 * n);  // attach() may hold any number of vertices up to all
-  for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 ? 1.0 : 0.0;
+  for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 && !solid_vertex(m, v) ? 1.0 : 0.0;
+  w.solid = make_solid_work(m);
   return w;
 }
 
@@ -114,6 +116,11 @@ StepReport step(const Model& m, State& s, Work& w) {
       rep.status = StepStatus::substepped;
       rep.message = "guard: time step above the stable estimate, split into sub-steps";
     }
+  }
+  if (!m.solids.empty()) {                             // solid_step.cpp: the solid organs
+    const SolidStats ss = solid_step(m, s, w);
+    st.max_speed2 = std::max(st.max_speed2, ss.max_speed2);
+    st.checksum += ss.checksum;
   }
   // Inside each integrator: forces.cpp (springs.cpp 000 eq 6, 000 eq 7; curvature.cpp 000 eq 2
   // for 000 eq 5; flexion.cpp), tool.cpp (force or hold), then constraints.cpp

@@ -95,7 +95,7 @@ void snap_attached(State& s, const Work& w) {
 void set_free_mask(const Model& m, const State& s, Work& w) {
   const bool attach = s.tool.mode == ToolMode::attach;
   if (!attach && !w.mask_dirty) return;
-  for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 ? 1.0 : 0.0;
+  for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 && !solid_vertex(m, v) ? 1.0 : 0.0;
   if (attach)
     for (int32_t v : s.tool.verts) w.free_mask[v] = 0.0;
   w.mask_dirty = attach;

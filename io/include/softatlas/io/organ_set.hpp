@@ -20,7 +20,7 @@ namespace softatlas::io {
 // Material of one organ as written in atlas.yaml (`material:` map). Units in the names.
 // Any field not given keeps the default below. See docs/physics.md for each parameter's paper.
 struct MaterialSpec {
-  std::string model = "nmsm";        // tmsm | cmsm | nmsm | flexion
+  std::string model = "nmsm";        // tmsm | cmsm | nmsm | flexion | solid
   double young_modulus_pa = 4000.0;  // E in eq 9 of paper 000 (liver: a few kPa)
   double thickness_m = 1e-3;         // t in eq 9 (paper 000 uses 1e-3 m)
   double density_kg_m3 = 1060.0;     // organ mass = density * enclosed volume, spread by eq 8
@@ -36,6 +36,10 @@ struct MaterialSpec {
   double flexion_stiffness = 0.0;    // dihedral springs (paper 003), N*m per radian; 0 = off
   double volume_stiffness = 0.5;     // volume constraint (paper 003 eq 25), 0..1; 0 = off. On by
                                      // default: surface springs alone do not hold the volume
+  // solid model (sim/solid.hpp): written only for model: solid
+  double poisson_ratio = 0.45;
+  double damping_ratio = 0.5;        // Rayleigh damping ratio at the organ's lowest shear mode
+  int solid_nodes = 0;               // lattice node budget; 0 = the core's default
 };
 
 struct OrganEntry {

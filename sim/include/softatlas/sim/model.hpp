@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include "softatlas/sim/solid.hpp"
+
 namespace softatlas::sim {
 
 enum class ModelKind : int32_t {
@@ -21,6 +23,7 @@ enum class ModelKind : int32_t {
   cmsm = 1,     // Hooke + over-stretch / over-compress compensation (Duan et al. 2016)
   nmsm = 2,     // elastica springs (000 eq 5, 000 eq 6, 000 eq 7)
   flexion = 3,  // Hooke + dihedral flexion springs + volume constraint (paper 003)
+  solid = 4,    // volumetric lattice, corotational FEM by projective dynamics (sim/solid.hpp)
 };
 const char* to_string(ModelKind kind);
 bool parse_model_kind(const std::string& text, ModelKind& out);
@@ -72,6 +75,11 @@ struct Material {
   int compensation_iterations = 4;   // inner iterations of the compensation (CMSM)
   double flexion_stiffness = 0.0;    // dihedral springs, N m / rad; 0 = off
   double volume_stiffness = 0.0;     // volume constraint, 0..1 per step; 0 = off
+  // solid model (sim/solid.hpp)
+  double poisson_ratio = 0.45;       // Lame lambda, mu from E and nu
+  double damping_ratio = 0.5;        // Rayleigh damping: ratio at the lowest shear mode
+  int solid_nodes = 0;               // lattice node budget; 0 = 300
+  int solid_iterations = 0;          // local/global iterations per step; 0 = 6
 };
 
 // What the caller describes; compile() turns it into a Model (sim/scene.hpp).
@@ -189,6 +197,9 @@ struct Model {
   std::vector<std::string> plan;
   std::vector<std::string> dropped;
   double size_m = 0.0;                 // bounding-box diagonal, a length scale for tolerances
+  // solid organs (sim/solid.hpp): their surface vertices follow the lattice, not an integrator
+  std::vector<SolidBody> solids;
+  std::vector<int32_t> organ_solid;    // per organ: index into solids, -1 for surface models
 };
 
 // The tool: one interaction at a time (force pulling or position attachment).
@@ -218,6 +229,7 @@ struct State {
   bool guard_implicit = false;           // after a restore the guard keeps solving implicitly
   int64_t guard_actions = 0;             // sub-stepped, implicit, clamped or restored steps
   int64_t guard_restores = 0;
+  std::vector<double> solid_x, solid_v;  // solid organs' lattice nodes (#nodes*3), sim/solid.hpp
 };
 
 class WorkerPool;  // sim/src/workers.hpp
@@ -255,6 +267,7 @@ struct Work {
   std::vector<double> good_x, good_y, good_z;  // restore zeroes velocities
   double good_time_s = 0.0;
   int64_t good_step = -1;
+  std::vector<SolidWork> solid;              // per solid organ (sim/solid.hpp)
 };
 
 }  // namespace softatlas::sim

@@ -1,0 +1,122 @@
+// The solid organ model (material `model: solid`): a coarse volumetric lattice of tetrahedra
+// inside each organ's closed surface, the surface vertices embedded in it by barycentric weights,
+// corotational linear elasticity solved by projective dynamics with a prefactored system matrix.
+//
+//   lattice    body of regular cells (6 Kuhn tetrahedra each) covering the inside of the surface;
+//              cells cut by the surface keep the fraction of their volume that lies inside as a
+//              weight on mass and stiffness (composite elements, Nesme et al. 2009); spacing
+//              from the organ's volume and a node budget (solid_lattice.cpp)
+//   energy     per tetrahedron mu |F - R|^2 + lambda / 2 (tr(R^T F) - 3)^2, R the rotation of F:
+//              corotational linear elasticity (Mueller & Gross 2004), written as the two
+//              projective-dynamics constraints of Bouaziz et al. 2014 (strain and volume)
+//   damping    Rayleigh stiffness-proportional damping beta K with beta = 2 zeta / omega_1, zeta
+//              the material's damping ratio at the organ's lowest shear mode omega_1, written in the
+//              rotated frame so that rigid motion is not damped
+//   step       implicit Euler as a minimisation (Liu et al. 2013, Bouaziz et al. 2014): a few
+//              local (rotation fits) / global (one prefactored sparse solve, Eigen SimplicialLDLT)
+//              iterations; fixed vertices are stiff zero-length anchors in the matrix; vertices the
+//              tool holds are exact constraints through a Schur complement on the prefactored
+//              matrix, whose multipliers are the tool's reaction force (solid_step.cpp)
+//
+// Units SI. Everything allocated by compile_solids() and make_solid_work(); solid_step() does not
+// allocate except the first time the tool grasps a new set of vertices of a solid organ.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "softatlas/sim/fem.hpp"
+
+namespace softatlas::sim {
+
+// The lattice of one closed surface (vertices #V*3, faces #F*3, outward or inward oriented).
+struct SolidLattice {
+  fem::TetMesh mesh;                // nodes and positive tetrahedra
+  std::vector<double> tet_fraction; // #tets: inside fraction of the tetrahedron's cell (0, 1]
+  std::vector<int32_t> embed_tet;   // #V: tetrahedron holding each surface vertex (-1: unused)
+  std::vector<double> embed_w;      // #V*4 barycentric weights
+  double spacing_m = 0.0;
+};
+// Cells of size spacing_m; a cell is kept when part of it lies inside the surface (27 samples,
+// ray parity along x) or a surface vertex lies in it. Throws InputError when the surface has no
+// extent or the spacing is not positive.
+SolidLattice solid_lattice(const std::vector<double>& vertices, const std::vector<int32_t>& faces,
+                           double spacing_m);
+// The spacing whose lattice has at most about `node_budget` nodes (>= 8).
+SolidLattice solid_lattice_budget(const std::vector<double>& vertices, const std::vector<int32_t>& faces,
+                                  int node_budget);
+
+struct Model;
+struct State;
+struct Work;
+struct SceneDesc;
+
+struct SolidFactor;  // the prefactored system matrix (Eigen, solid_step.cpp)
+
+// One compiled solid organ.
+struct SolidBody {
+  int32_t organ = 0;               // compiled organ index
+  int32_t node_begin = 0;          // first node in State::solid_x / solid_v (#nodes * 3 doubles)
+  int32_t nnode = 0, ntet = 0;
+  double spacing_m = 0.0;          // lattice cell size
+  std::vector<double> rest;        // #nnode * 3
+  std::vector<double> mass;        // #nnode, kg (sums to the organ's mass)
+  std::vector<int32_t> tets;       // #ntet * 4 local node indices (positive volume)
+  std::vector<double> grad;        // #ntet * 12: gradient g_i of each node's shape function
+  std::vector<double> w_strain;    // #ntet: 2 mu V f (f = inside fraction of the cell)
+  std::vector<double> w_volume;    // #ntet: 3 lambda V f
+  std::vector<int32_t> embed_tet;  // per organ vertex (v - vert_begin): tetrahedron
+  std::vector<double> embed_w;     // per organ vertex * 4: barycentric weights
+  int32_t nfixed = 0;              // fixed surface vertices (anchors in the matrix)
+  double anchor_weight = 0.0;      // N/m of each anchor
+  double young_modulus_pa = 0.0, poisson_ratio = 0.0, damping_ratio = 0.0;
+  double omega1_rad_s = 0.0;       // lowest shear mode estimate
+  double beta_s = 0.0;             // Rayleigh stiffness coefficient
+  double dt_s = 0.0;               // the factor is built for this step
+  int iterations = 0;              // local/global iterations per step
+  std::shared_ptr<const SolidFactor> factor;
+};
+
+// Per solid organ scratch (copyable; no Eigen types in this header).
+struct SolidWork {
+  std::vector<double> q;           // #nnode * 3 current iterate (row-major)
+  std::vector<double> s;           // inertial prediction
+  std::vector<double> rhs;         // #nnode * 3
+  std::vector<double> sol;         // #nnode * 3 (column-major scratch for the solver)
+  std::vector<double> quat;        // #ntet * 4 warm start of the rotation fits (w, x, y, z)
+  std::vector<double> f_prev;      // #ntet * 9 deformation gradient at the start of the step
+  std::vector<double> r_prev;      // #ntet * 9 its rotation
+  std::vector<double> fext;        // #nnode * 3 external nodal forces of this step
+  // the tool's exact constraints: grasped vertices, Z = A^-1 C^T (#nnode x k, column-major),
+  // Cholesky factor of S = C Z (k x k), multipliers (k * 3)
+  std::vector<int32_t> grasp_verts;
+  std::vector<double> grasp_z, grasp_chol, grasp_lambda, grasp_target, grasp_rhs;
+};
+
+// Builds every organ whose material model is solid (after the rest of compile()).
+void compile_solids(const SceneDesc& scene, Model& model);
+// Rest nodes, zero velocities.
+void init_solid_state(const Model& model, State& state);
+std::vector<SolidWork> make_solid_work(const Model& model);
+// True when vertex v belongs to a solid organ (the surface integrators leave it alone).
+bool solid_vertex(const Model& model, int32_t v);
+
+struct SolidStats {
+  double max_speed2 = 0.0;   // surface vertices, (m/s)^2
+  double checksum = 0.0;     // finite unless something went wrong
+  bool reaction = false;     // the tool holds a solid organ: reaction_N was set
+};
+// Advances every awake solid organ by model.dt_s and writes its surface vertices' positions and
+// velocities; external loads: the tool (force or attachment, targets in work.tool_target), the
+// connection springs at the current positions, gravity.
+SolidStats solid_step(const Model& model, State& state, Work& work);
+
+// One line for the compiled plan (explain): lattice size, material, damping, iterations.
+std::string solid_plan(const SolidBody& body);
+
+// Elastic energy of the solid organs plus the kinetic energy of their nodes (J).
+double solid_energy(const Model& model, const State& state);
+
+}  // namespace softatlas::sim

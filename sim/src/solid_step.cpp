@@ -1,0 +1,583 @@
+// The solid organ model: compile (masses, weights, damping, prefactored matrix) and the
+// projective-dynamics step (solid.hpp). Equations:
+//   implicit Euler as minimisation      Liu et al. 2013 eq 4 / Bouaziz et al. 2014 eq 5:
+//     x = argmin 1/(2 h^2) |x - s|_M^2 + sum_e W_e(x) - f_ext . x,   s = x_n + h v_n
+//   constraint energy                   Bouaziz et al. 2014 eq 9: w/2 |G_e x - p_e|^2, p_e the
+//                                       projection of the element's F onto its constraint set
+//   strain (corotational, shear part)   p = R, w = 2 mu V      (mu |F - R|^2)
+//   volume (corotational, trace part)   p = F - (tr(R^T F) - 3)/3 R, w = 3 lambda V
+//                                       (lambda/2 (tr(R^T F) - 3)^2; Mueller & Gross 2004)
+//   Rayleigh damping beta K, rotated    p = F_n + R - R_n, w = beta/h 2 mu V
+//   global step                         Bouaziz et al. 2014 eq 12:
+//     (M/h^2 + sum_e w_e G_e^T G_e) x = M s/h^2 + sum_e w_e G_e^T p_e + f_ext
+//   rotation fit                        Mueller et al. 2016 (warm-started quaternion iteration)
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+
+#include <Eigen/Dense>
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+
+#include "engine.hpp"
+#include "softatlas/sim/error.hpp"
+#include "softatlas/sim/sim.hpp"
+#include "softatlas/sim/solid.hpp"
+
+namespace softatlas::sim {
+
+struct SolidFactor {
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
+  Eigen::VectorXd base_rhs;  // constant part of the right-hand side: anchors (#nnode*3, col-major)
+};
+
+namespace {
+
+using Mat3 = Eigen::Matrix3d;
+using ColMatX3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
+
+constexpr int kDefaultNodes = 300;       // lattice nodes per organ when the material gives none
+constexpr int kDefaultIterations = 6;    // local/global iterations per step
+constexpr int kRotationIterations = 2;   // warm-started rotation-fit iterations per local step
+
+Mat3 quat_matrix(const double* q) {
+  const double w = q[0], x = q[1], y = q[2], z = q[3];
+  Mat3 R;
+  R << 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+       2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+       2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y);
+  return R;
+}
+
+// Rotation of F by the iteration of Mueller et al. 2016 ("A robust method to extract the
+// rotational part of deformations", Algorithm 1), starting from the unit quaternion q (w, x, y,
+// z) and leaving the result there. The quaternion exponential of small steps (|omega| < 0.1) by
+// its Taylor series (error < 1e-10), without sin/cos.
+Mat3 rotation_fit(const Mat3& A, double* q, int iterations) {
+  Mat3 R = quat_matrix(q);
+  for (int it = 0; it < iterations; ++it) {
+    const Eigen::Vector3d omega =
+        (R.col(0).cross(A.col(0)) + R.col(1).cross(A.col(1)) + R.col(2).cross(A.col(2))) *
+        (1.0 / (std::fabs(R.col(0).dot(A.col(0)) + R.col(1).dot(A.col(1)) + R.col(2).dot(A.col(2))) + 1e-9));
+    const double w2 = omega.squaredNorm();
+    if (w2 < 1e-24) break;
+    double c, sw;  // cos(w/2), sin(w/2)/w
+    if (w2 < 0.01) {
+      c = 1.0 - w2 / 8.0 + w2 * w2 / 384.0;
+      sw = 0.5 - w2 / 48.0 + w2 * w2 / 3840.0;
+    } else {
+      const double w = std::sqrt(w2);
+      c = std::cos(0.5 * w), sw = std::sin(0.5 * w) / w;
+    }
+    const double dx = sw * omega[0], dy = sw * omega[1], dz = sw * omega[2];
+    const double nq[4] = {c * q[0] - dx * q[1] - dy * q[2] - dz * q[3], c * q[1] + dx * q[0] + dy * q[3] - dz * q[2],
+                          c * q[2] - dx * q[3] + dy * q[0] + dz * q[1], c * q[3] + dx * q[2] - dy * q[1] + dz * q[0]};
+    const double inv = 1.0 / std::sqrt(nq[0] * nq[0] + nq[1] * nq[1] + nq[2] * nq[2] + nq[3] * nq[3]);
+    for (int k = 0; k < 4; ++k) q[k] = nq[k] * inv;
+    R = quat_matrix(q);
+  }
+  return R;
+}
+
+// F = sum_i x_i g_i^T of tetrahedron t at positions x (#nnode*3 row-major).
+Mat3 deformation(const SolidBody& b, int32_t t, const double* x) {
+  Mat3 F = Mat3::Zero();
+  const int32_t* n = &b.tets[4 * t];
+  const double* g = &b.grad[12 * t];
+  for (int i = 0; i < 4; ++i) {
+    const double* p = x + 3 * n[i];
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) F(r, c) += p[r] * g[3 * i + c];
+  }
+  return F;
+}
+
+double enclosed_volume_local(const std::vector<double>& V, const std::vector<int32_t>& F) {
+  double v = 0.0;
+  for (size_t f = 0; f + 2 < F.size(); f += 3) {
+    const double* a = &V[3 * F[f]];
+    const double* b = &V[3 * F[f + 1]];
+    const double* c = &V[3 * F[f + 2]];
+    v += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+          a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
+  }
+  return std::fabs(v);
+}
+
+using Triplets = std::vector<Eigen::Triplet<double>>;
+
+// sum_e w_e G_e^T G_e as triplets (scalar n x n: the same matrix acts on x, y and z).
+void add_laplacian(const SolidBody& b, const std::vector<double>& w, Triplets& T) {
+  for (int32_t t = 0; t < b.ntet; ++t) {
+    const int32_t* n = &b.tets[4 * t];
+    const double* g = &b.grad[12 * t];
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j)
+        T.emplace_back(n[i], n[j], w[t] * (g[3 * i] * g[3 * j] + g[3 * i + 1] * g[3 * j + 1] + g[3 * i + 2] * g[3 * j + 2]));
+  }
+}
+
+// Lowest nonzero shear frequency of the free lattice: L_mu u = omega^2 M u with the scalar
+// Laplacian of weight mu V f, by inverse iteration M-orthogonal to the constants.
+double lowest_shear_mode(const SolidBody& b, double mu) {
+  std::vector<double> w(b.ntet);
+  for (int32_t t = 0; t < b.ntet; ++t) w[t] = 0.5 * b.w_strain[t];  // 2 mu V f / 2
+  (void)mu;
+  Triplets T;
+  add_laplacian(b, w, T);
+  Eigen::SparseMatrix<double> L(b.nnode, b.nnode);
+  L.setFromTriplets(T.begin(), T.end());
+  const Eigen::Map<const Eigen::VectorXd> M(b.mass.data(), b.nnode);
+  const double shift = 1e-6 * L.diagonal().sum() / M.sum();
+  Eigen::SparseMatrix<double> S = L;
+  for (int i = 0; i < b.nnode; ++i) S.coeffRef(i, i) += shift * M[i];
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(S);
+  if (ldlt.info() != Eigen::Success) return 0.0;
+  Eigen::VectorXd u(b.nnode);
+  const Eigen::Map<const Eigen::VectorXd> X(b.rest.data(), b.nnode, 1);  // a non-constant start
+  for (int i = 0; i < b.nnode; ++i) u[i] = b.rest[3 * i] + 0.3 * b.rest[3 * i + 1] + 0.1 * b.rest[3 * i + 2];
+  (void)X;
+  const double mt = M.sum();
+  for (int it = 0; it < 40; ++it) {
+    u.array() -= M.dot(u) / mt;                    // remove the constant (rigid translation)
+    u /= std::sqrt(u.dot(M.cwiseProduct(u)));
+    u = ldlt.solve(M.cwiseProduct(u)).eval();
+  }
+  u.array() -= M.dot(u) / mt;
+  const double num = u.dot(L * u), den = u.dot(M.cwiseProduct(u));
+  return den > 0 ? std::sqrt(std::max(num / den, 0.0)) : 0.0;
+}
+
+}  // namespace
+
+void compile_solids(const SceneDesc& scene, Model& m) {
+  const int32_t norg = static_cast<int32_t>(m.organs.size());
+  m.solids.clear();
+  m.organ_solid.assign(norg, -1);
+  int32_t node_total = 0;
+  const double h = m.dt_s;
+  for (int32_t o = 0; o < norg; ++o) {
+    const OrganRange& r = m.organs[o];
+    if (r.model != ModelKind::solid) continue;
+    const Material& mat = scene.organs[r.source_index].material;
+    // the surface passes do not apply: the lattice carries the organ
+    m.organs[o].volume_stiffness = 0.0, m.organs[o].compensation_iterations = 0;
+    m.organs[o].curvature = false, m.organs[o].damping = false;
+    const std::string where = "organ " + r.name + ": material";
+    if (!(mat.poisson_ratio > -1.0 && mat.poisson_ratio < 0.5))
+      throw InputError(where, "poisson_ratio must lie in (-1, 0.5)");
+    if (!(mat.damping_ratio >= 0.0) || !std::isfinite(mat.damping_ratio))
+      throw InputError(where, "damping_ratio must be >= 0");
+    if (!(mat.young_modulus_pa > 0.0) || !std::isfinite(mat.young_modulus_pa))
+      throw InputError(where, "young_modulus_pa must be > 0 for the solid model");
+    if (mat.solid_nodes < 0 || mat.solid_iterations < 0)
+      throw InputError(where, "solid_nodes and solid_iterations must be >= 0");
+
+    const int32_t nv = r.vert_end - r.vert_begin;
+    std::vector<double> V(3 * static_cast<size_t>(nv));
+    for (int32_t v = 0; v < nv; ++v)
+      V[3 * v] = m.vert_rest_x[r.vert_begin + v], V[3 * v + 1] = m.vert_rest_y[r.vert_begin + v],
+             V[3 * v + 2] = m.vert_rest_z[r.vert_begin + v];
+    std::vector<int32_t> F(m.face_vert.begin() + 3 * r.face_begin, m.face_vert.begin() + 3 * r.face_end);
+    for (int32_t& f : F) f -= r.vert_begin;
+    const SolidLattice L = solid_lattice_budget(V, F, mat.solid_nodes > 0 ? mat.solid_nodes : kDefaultNodes);
+
+    SolidBody b;
+    b.organ = o;
+    b.node_begin = node_total;
+    b.nnode = L.mesh.nnode();
+    b.ntet = L.mesh.ntet();
+    b.spacing_m = L.spacing_m;
+    b.rest = L.mesh.nodes;
+    b.tets = L.mesh.tets;
+    b.embed_tet = L.embed_tet;
+    b.embed_w = L.embed_w;
+    b.young_modulus_pa = mat.young_modulus_pa;
+    b.poisson_ratio = mat.poisson_ratio;
+    b.damping_ratio = mat.damping_ratio;
+    b.dt_s = h;
+    b.iterations = mat.solid_iterations > 0 ? mat.solid_iterations : kDefaultIterations;
+    double lambda = 0.0, mu = 0.0;
+    fem::lame(mat.young_modulus_pa, mat.poisson_ratio, lambda, mu);
+
+    b.grad.resize(12 * static_cast<size_t>(b.ntet));
+    b.w_strain.resize(b.ntet);
+    b.w_volume.resize(b.ntet);
+    b.mass.assign(b.nnode, 0.0);
+    for (int32_t t = 0; t < b.ntet; ++t) {
+      const int32_t* n = &b.tets[4 * t];
+      Mat3 Dm;
+      for (int a = 0; a < 3; ++a)
+        for (int c = 0; c < 3; ++c) Dm(c, a) = b.rest[3 * n[a + 1] + c] - b.rest[3 * n[0] + c];
+      const double vol = Dm.determinant() / 6.0;
+      const Mat3 Di = Dm.inverse();
+      double* g = &b.grad[12 * t];
+      for (int c = 0; c < 3; ++c) {
+        g[c] = -(Di(0, c) + Di(1, c) + Di(2, c));
+        for (int a = 0; a < 3; ++a) g[3 * (a + 1) + c] = Di(a, c);
+      }
+      const double f = L.tet_fraction[t];
+      b.w_strain[t] = 2.0 * mu * vol * f;
+      b.w_volume[t] = 3.0 * lambda * vol * f;
+      for (int i = 0; i < 4; ++i) b.mass[n[i]] += 0.25 * vol * f;
+    }
+    const double organ_mass = mat.total_mass_kg > 0 ? mat.total_mass_kg
+                                                     : mat.density_kg_m3 * enclosed_volume_local(V, F);
+    double msum = 0.0;
+    for (double mi : b.mass) msum += mi;
+    for (double& mi : b.mass) mi *= organ_mass / msum;
+
+    // Rayleigh stiffness-proportional damping: zeta = beta omega / 2 at the lowest shear mode.
+    b.omega1_rad_s = lowest_shear_mode(b, mu);
+    b.beta_s = b.omega1_rad_s > 0 ? 2.0 * b.damping_ratio / b.omega1_rad_s : 0.0;
+
+    // System matrix.
+    std::vector<double> w(b.ntet);
+    for (int32_t t = 0; t < b.ntet; ++t) w[t] = b.w_strain[t] * (1.0 + b.beta_s / h) + b.w_volume[t];
+    Triplets T;
+    add_laplacian(b, w, T);
+    double diag_max = 0.0;
+    {
+      std::vector<double> diag(b.nnode, 0.0);
+      for (const auto& e : T)
+        if (e.row() == e.col()) diag[e.row()] += e.value();
+      for (int32_t i = 0; i < b.nnode; ++i) {
+        diag[i] += b.mass[i] / (h * h);
+        diag_max = std::max(diag_max, diag[i]);
+      }
+    }
+    for (int32_t i = 0; i < b.nnode; ++i) T.emplace_back(i, i, b.mass[i] / (h * h));
+    // Fixed surface vertices: zero-length anchors to their rest position, 1e3 times stiffer than
+    // the stiffest node (their motion under a load is 1e-3 of the organ's).
+    b.anchor_weight = std::max(1e4, 1e3 * diag_max);
+    auto factor = std::make_shared<SolidFactor>();
+    factor->base_rhs = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(b.nnode));
+    for (int32_t v = 0; v < nv; ++v) {
+      if (m.vert_inv_mass[r.vert_begin + v] > 0 || b.embed_tet[v] < 0) continue;
+      ++b.nfixed;
+      const int32_t* n = &b.tets[4 * b.embed_tet[v]];
+      const double* bw = &b.embed_w[4 * v];
+      for (int i = 0; i < 4; ++i) {
+        for (int j = 0; j < 4; ++j) T.emplace_back(n[i], n[j], b.anchor_weight * bw[i] * bw[j]);
+        for (int c = 0; c < 3; ++c) factor->base_rhs[c * b.nnode + n[i]] += b.anchor_weight * bw[i] * V[3 * v + c];
+      }
+    }
+    Eigen::SparseMatrix<double> A(b.nnode, b.nnode);
+    A.setFromTriplets(T.begin(), T.end());
+    factor->ldlt.compute(A);
+    if (factor->ldlt.info() != Eigen::Success)
+      throw InputError("organ " + r.name, "solid model: the lattice's system matrix could not be factorised");
+    b.factor = factor;
+    node_total += b.nnode;
+    m.organ_solid[o] = static_cast<int32_t>(m.solids.size());
+    m.solids.push_back(std::move(b));
+  }
+}
+
+std::string solid_plan(const SolidBody& b) {
+  char buf[400];
+  std::snprintf(buf, sizeof buf,
+                "lattice of %d nodes / %d tetrahedra (cell %.1f mm), corotational E = %g Pa, nu = %g, "
+                "Rayleigh beta = %.3g s (damping ratio %g at %.1f Hz), %d local/global iterations, %d anchored vertices",
+                b.nnode, b.ntet, 1e3 * b.spacing_m, b.young_modulus_pa, b.poisson_ratio, b.beta_s, b.damping_ratio,
+                b.omega1_rad_s / (2 * M_PI), b.iterations, b.nfixed);
+  return buf;
+}
+
+bool solid_vertex(const Model& m, int32_t v) {
+  return !m.organ_solid.empty() && m.organ_solid[m.vert_organ[v]] >= 0;
+}
+
+void init_solid_state(const Model& m, State& s) {
+  size_t n = 0;
+  for (const SolidBody& b : m.solids) n += 3 * static_cast<size_t>(b.nnode);
+  s.solid_x.resize(n);
+  s.solid_v.assign(n, 0.0);
+  for (const SolidBody& b : m.solids) std::copy(b.rest.begin(), b.rest.end(), s.solid_x.begin() + 3 * b.node_begin);
+}
+
+std::vector<SolidWork> make_solid_work(const Model& m) {
+  std::vector<SolidWork> out(m.solids.size());
+  for (size_t i = 0; i < m.solids.size(); ++i) {
+    const SolidBody& b = m.solids[i];
+    SolidWork& w = out[i];
+    const size_t n3 = 3 * static_cast<size_t>(b.nnode);
+    w.q.assign(n3, 0.0), w.s.assign(n3, 0.0), w.rhs.assign(n3, 0.0), w.sol.assign(n3, 0.0), w.fext.assign(n3, 0.0);
+    w.quat.assign(4 * static_cast<size_t>(b.ntet), 0.0);
+    for (int32_t t = 0; t < b.ntet; ++t) w.quat[4 * t] = 1.0;
+    w.f_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
+    w.r_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
+  }
+  return out;
+}
+
+namespace {
+
+// Position and velocity of global vertex v: solid organs' from their lattice, others' from the state.
+void vertex_state(const Model& m, const State& s, int32_t v, double p[3], double u[3]) {
+  const int32_t o = m.vert_organ[v];
+  const int32_t si = m.organ_solid[o];
+  const int32_t t = si >= 0 ? m.solids[si].embed_tet[v - m.organs[o].vert_begin] : -1;
+  if (t < 0) {
+    p[0] = s.x[v], p[1] = s.y[v], p[2] = s.z[v];
+    u[0] = s.vx[v], u[1] = s.vy[v], u[2] = s.vz[v];
+    return;
+  }
+  const SolidBody& b = m.solids[si];
+  const int32_t* n = &b.tets[4 * t];
+  const double* w = &b.embed_w[4 * (v - m.organs[o].vert_begin)];
+  const double* X = s.solid_x.data() + 3 * static_cast<size_t>(b.node_begin);
+  const double* V = s.solid_v.data() + 3 * static_cast<size_t>(b.node_begin);
+  for (int c = 0; c < 3; ++c) {
+    p[c] = u[c] = 0.0;
+    for (int i = 0; i < 4; ++i) p[c] += w[i] * X[3 * n[i] + c], u[c] += w[i] * V[3 * n[i] + c];
+  }
+}
+
+// Spreads a force on organ vertex v (local index) to its tetrahedron's nodes.
+void spread(const SolidBody& b, int32_t v, const double f[3], std::vector<double>& fext) {
+  const int32_t t = b.embed_tet[v];
+  if (t < 0) return;
+  const int32_t* n = &b.tets[4 * t];
+  const double* w = &b.embed_w[4 * v];
+  for (int i = 0; i < 4; ++i)
+    for (int c = 0; c < 3; ++c) fext[3 * n[i] + c] += w[i] * f[c];
+}
+
+// The exact constraints of the vertices the tool holds: Z = A^-1 C^T and the Cholesky factor of
+// S = C Z (+ a 1e-10 relative regularisation: more held vertices than free nodes make S singular,
+// with consistent targets the multipliers' sum, the reaction, stays exact).
+void prepare_grasp(const SolidBody& b, SolidWork& w, const std::vector<int32_t>& local) {
+  const int32_t k = static_cast<int32_t>(local.size());
+  w.grasp_verts = local;
+  Eigen::MatrixXd Ct = Eigen::MatrixXd::Zero(b.nnode, k);
+  for (int32_t j = 0; j < k; ++j) {
+    const int32_t* n = &b.tets[4 * b.embed_tet[local[j]]];
+    for (int i = 0; i < 4; ++i) Ct(n[i], j) += b.embed_w[4 * local[j] + i];
+  }
+  const Eigen::MatrixXd Z = b.factor->ldlt.solve(Ct);
+  Eigen::MatrixXd S = Ct.transpose() * Z;
+  const double eps = 1e-10 * S.diagonal().maxCoeff();
+  S.diagonal().array() += eps;
+  Eigen::LLT<Eigen::MatrixXd> llt(S);
+  const Eigen::MatrixXd Lf = llt.matrixL();
+  w.grasp_z.assign(Z.data(), Z.data() + Z.size());
+  w.grasp_chol.assign(Lf.data(), Lf.data() + Lf.size());
+  w.grasp_lambda.assign(3 * static_cast<size_t>(k), 0.0);
+  w.grasp_target.assign(3 * static_cast<size_t>(k), 0.0);
+  w.grasp_rhs.assign(3 * static_cast<size_t>(k), 0.0);
+}
+
+}  // namespace
+
+SolidStats solid_step(const Model& m, State& s, Work& work) {
+  SolidStats st;
+  if (m.solids.empty()) return st;
+  const double h = m.dt_s;
+  ToolState& tool = s.tool;
+  std::array<double, 3> reaction{0, 0, 0};
+  if (tool.mode == ToolMode::attach && !tool.verts.empty()) engine::attach_targets(m, s, work, 1.0);  // tool.cpp
+  for (size_t bi = 0; bi < m.solids.size(); ++bi) {
+    const SolidBody& b = m.solids[bi];
+    SolidWork& w = work.solid[bi];
+    const OrganRange& r = m.organs[b.organ];
+    double* X = s.solid_x.data() + 3 * static_cast<size_t>(b.node_begin);
+    double* Vn = s.solid_v.data() + 3 * static_cast<size_t>(b.node_begin);
+    const size_t n3 = 3 * static_cast<size_t>(b.nnode);
+    if (!s.organ_awake[b.organ]) {
+      std::fill(Vn, Vn + n3, 0.0);
+      continue;
+    }
+    // External loads of this step, at the current positions.
+    std::fill(w.fext.begin(), w.fext.end(), 0.0);
+    if (m.gravity)
+      for (int32_t i = 0; i < b.nnode; ++i)
+        for (int c = 0; c < 3; ++c) w.fext[3 * i + c] += b.mass[i] * m.gravity_m_s2[c];
+    for (int32_t q = 0; q < m.nconn; ++q) {
+      const int32_t a = m.conn_a[q], c = m.conn_b[q];
+      const bool in_a = m.vert_organ[a] == b.organ, in_c = m.vert_organ[c] == b.organ;
+      if (!in_a && !in_c) continue;
+      double pa[3], ua[3], pc[3], uc[3];
+      vertex_state(m, s, a, pa, ua);
+      vertex_state(m, s, c, pc, uc);
+      const double d[3] = {pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]};
+      const double l = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      if (!(l > 0)) continue;
+      const double u[3] = {d[0] / l, d[1] / l, d[2] / l};
+      const double rel = (uc[0] - ua[0]) * u[0] + (uc[1] - ua[1]) * u[1] + (uc[2] - ua[2]) * u[2];
+      const double mag = m.conn_k[q] * (l - m.conn_rest[q]) + m.conn_d[q] * rel;  // pulls a towards c
+      const double fa[3] = {mag * u[0], mag * u[1], mag * u[2]};
+      const double fc[3] = {-fa[0], -fa[1], -fa[2]};
+      if (in_a) spread(b, a - r.vert_begin, fa, w.fext);
+      if (in_c) spread(b, c - r.vert_begin, fc, w.fext);
+    }
+    bool holds = false;
+    int32_t k = 0;
+    if (tool.mode == ToolMode::force && !tool.verts.empty()) {
+      double Fv[3] = {tool.force_N[0], tool.force_N[1], tool.force_N[2]};
+      const double mag = std::sqrt(Fv[0] * Fv[0] + Fv[1] * Fv[1] + Fv[2] * Fv[2]);
+      if (m.guard && mag > m.max_tool_force_N)
+        for (double& f : Fv) f *= m.max_tool_force_N / mag;
+      const double share = 1.0 / static_cast<double>(tool.verts.size());
+      const double fs[3] = {Fv[0] * share, Fv[1] * share, Fv[2] * share};
+      for (int32_t v : tool.verts)
+        if (m.vert_organ[v] == b.organ) {
+          spread(b, v - r.vert_begin, fs, w.fext);
+          for (int c = 0; c < 3; ++c) reaction[c] -= fs[c];
+          holds = true;
+        }
+    } else if (tool.mode == ToolMode::attach && !tool.verts.empty()) {
+      // Held vertices of this organ, in tool order; a new set rebuilds the Schur complement.
+      bool same = true;
+      int32_t count = 0;
+      for (int32_t v : tool.verts)
+        if (m.vert_organ[v] == b.organ) {
+          same = same && count < static_cast<int32_t>(w.grasp_verts.size()) && w.grasp_verts[count] == v - r.vert_begin;
+          ++count;
+        }
+      same = same && count == static_cast<int32_t>(w.grasp_verts.size());
+      if (count > 0 && !same) {
+        std::vector<int32_t> local;
+        for (int32_t v : tool.verts)
+          if (m.vert_organ[v] == b.organ) local.push_back(v - r.vert_begin);
+        prepare_grasp(b, w, local);
+      }
+      k = count;
+      if (k > 0) {
+        int32_t j = 0;
+        for (size_t q = 0; q < tool.verts.size(); ++q)
+          if (m.vert_organ[tool.verts[q]] == b.organ) {
+            for (int c = 0; c < 3; ++c) w.grasp_target[3 * j + c] = work.tool_target[3 * q + c];
+            ++j;
+          }
+        holds = true;
+      }
+    }
+
+    // Inertial prediction, rotations at the start of the step.
+    for (size_t i = 0; i < n3; ++i) w.s[i] = X[i] + h * Vn[i], w.q[i] = w.s[i];
+    for (int32_t t = 0; t < b.ntet; ++t) {
+      const Mat3 F = deformation(b, t, X);
+      const Mat3 R = rotation_fit(F, &w.quat[4 * t], kRotationIterations);
+      Eigen::Map<Mat3>(&w.f_prev[9 * t]) = F;
+      Eigen::Map<Mat3>(&w.r_prev[9 * t]) = R;
+    }
+    const double inv_h2 = 1.0 / (h * h);
+    Eigen::Map<ColMatX3> sol(w.sol.data(), b.nnode, 3);
+    const Eigen::Map<const Eigen::MatrixXd> Z(w.grasp_z.data(), b.nnode, k);
+    const Eigen::Map<const Eigen::MatrixXd> Lc(w.grasp_chol.data(), k, k);
+    for (int it = 0; it < b.iterations; ++it) {
+      // local step: the constraint projections, summed into the right-hand side (column-major)
+      for (int32_t i = 0; i < b.nnode; ++i)
+        for (int c = 0; c < 3; ++c)
+          w.sol[c * b.nnode + i] = b.factor->base_rhs[c * b.nnode + i] + b.mass[i] * inv_h2 * w.s[3 * i + c] + w.fext[3 * i + c];
+      for (int32_t t = 0; t < b.ntet; ++t) {
+        const Mat3 F = deformation(b, t, w.q.data());
+        const Mat3 R = rotation_fit(F, &w.quat[4 * t], kRotationIterations);
+        const double tr = (R.transpose() * F).trace();
+        const double wd = b.w_strain[t] * b.beta_s / h;
+        const Mat3 Y = b.w_strain[t] * R + b.w_volume[t] * (F - ((tr - 3.0) / 3.0) * R) +
+                       wd * (Eigen::Map<const Mat3>(&w.f_prev[9 * t]) + R - Eigen::Map<const Mat3>(&w.r_prev[9 * t]));
+        const int32_t* n = &b.tets[4 * t];
+        const double* g = &b.grad[12 * t];
+        for (int i = 0; i < 4; ++i) {
+          const Eigen::Vector3d y = Y * Eigen::Vector3d(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
+          for (int c = 0; c < 3; ++c) w.sol[c * b.nnode + n[i]] += y[c];
+        }
+      }
+      // global step: one prefactored solve, then the held vertices' exact constraints
+      sol = b.factor->ldlt.solve(sol);
+      if (k > 0) {
+        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> res(w.grasp_rhs.data(), k, 3);
+        for (int32_t j = 0; j < k; ++j) {
+          const int32_t v = w.grasp_verts[j];
+          const int32_t* n = &b.tets[4 * b.embed_tet[v]];
+          for (int c = 0; c < 3; ++c) {
+            double p = 0.0;
+            for (int i = 0; i < 4; ++i) p += b.embed_w[4 * v + i] * sol(n[i], c);
+            res(j, c) = w.grasp_target[3 * j + c] - p;
+          }
+        }
+        const Eigen::Matrix<double, Eigen::Dynamic, 3> lam =
+            Lc.transpose().triangularView<Eigen::Upper>().solve(Lc.triangularView<Eigen::Lower>().solve(res));
+        sol.noalias() += Z * lam;
+        if (it + 1 == b.iterations)
+          for (int32_t j = 0; j < k; ++j)
+            for (int c = 0; c < 3; ++c) reaction[c] -= lam(j, c);
+      }
+      for (int32_t i = 0; i < b.nnode; ++i)
+        for (int c = 0; c < 3; ++c) w.q[3 * i + c] = sol(i, c);
+    }
+    double checksum = 0.0;
+    for (size_t i = 0; i < n3; ++i) {
+      Vn[i] = (w.q[i] - X[i]) / h;
+      X[i] = w.q[i];
+      checksum += X[i] + Vn[i];
+    }
+    if (!std::isfinite(checksum)) {  // cannot happen with finite input; keep the state usable
+      std::copy(b.rest.begin(), b.rest.end(), X);
+      std::fill(Vn, Vn + n3, 0.0);
+      for (int32_t t = 0; t < b.ntet; ++t) w.quat[4 * t] = 1, w.quat[4 * t + 1] = w.quat[4 * t + 2] = w.quat[4 * t + 3] = 0;
+      w.grasp_verts.clear();
+      st.checksum = NAN;
+    }
+    // Surface vertices follow the lattice.
+    for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
+      const int32_t t = b.embed_tet[v - r.vert_begin];
+      if (t < 0) continue;
+      const int32_t* n = &b.tets[4 * t];
+      const double* bw = &b.embed_w[4 * (v - r.vert_begin)];
+      double p[3] = {0, 0, 0}, u[3] = {0, 0, 0};
+      for (int i = 0; i < 4; ++i)
+        for (int c = 0; c < 3; ++c) p[c] += bw[i] * X[3 * n[i] + c], u[c] += bw[i] * Vn[3 * n[i] + c];
+      s.x[v] = p[0], s.y[v] = p[1], s.z[v] = p[2];
+      s.vx[v] = u[0], s.vy[v] = u[1], s.vz[v] = u[2];
+      st.max_speed2 = std::max(st.max_speed2, u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    }
+    if (std::isfinite(st.checksum)) st.checksum += checksum;
+    st.reaction = st.reaction || holds;
+  }
+  if (st.reaction) tool.reaction_N = reaction;
+  return st;
+}
+
+double solid_energy(const Model& m, const State& s) {
+  double e = 0.0;
+  for (const SolidBody& b : m.solids) {
+    const double* X = s.solid_x.data() + 3 * static_cast<size_t>(b.node_begin);
+    const double* Vn = s.solid_v.data() + 3 * static_cast<size_t>(b.node_begin);
+    for (int32_t i = 0; i < b.nnode; ++i)
+      e += 0.5 * b.mass[i] * (Vn[3 * i] * Vn[3 * i] + Vn[3 * i + 1] * Vn[3 * i + 1] + Vn[3 * i + 2] * Vn[3 * i + 2]);
+    for (int32_t t = 0; t < b.ntet; ++t) {
+      const Mat3 F = deformation(b, t, X);
+      Eigen::JacobiSVD<Mat3> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+      Mat3 U = svd.matrixU(), W = svd.matrixV();
+      if ((U * W.transpose()).determinant() < 0) U.col(2) *= -1.0;
+      const Mat3 R = U * W.transpose();
+      const double tr = (R.transpose() * F).trace() - 3.0;
+      e += 0.5 * b.w_strain[t] * (F - R).squaredNorm() + 0.5 * b.w_volume[t] * tr * tr / 3.0;
+    }
+    if (m.gravity)
+      for (int32_t i = 0; i < b.nnode; ++i)
+        for (int c = 0; c < 3; ++c) e -= b.mass[i] * m.gravity_m_s2[c] * (X[3 * i + c] - b.rest[3 * i + c]);
+    // anchors of the fixed vertices
+    const OrganRange& r = m.organs[b.organ];
+    for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
+      if (m.vert_inv_mass[v] > 0) continue;
+      const int32_t t = b.embed_tet[v - r.vert_begin];
+      if (t < 0) continue;
+      const int32_t* n = &b.tets[4 * t];
+      const double* bw = &b.embed_w[4 * (v - r.vert_begin)];
+      const double rest[3] = {m.vert_rest_x[v], m.vert_rest_y[v], m.vert_rest_z[v]};
+      for (int c = 0; c < 3; ++c) {
+        double p = 0.0;
+        for (int i = 0; i < 4; ++i) p += bw[i] * X[3 * n[i] + c];
+        e += 0.5 * b.anchor_weight * (p - rest[c]) * (p - rest[c]);
+      }
+    }
+  }
+  return e;
+}
+
+}  // namespace softatlas::sim
