@@ -308,8 +308,8 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
         << ", flexion_stiffness: " << m.flexion_stiffness
         << ", volume_stiffness: " << m.volume_stiffness;
       if (m.model == "solid")
-        y << ", poisson_ratio: " << m.poisson_ratio << ", damping_ratio: " << m.damping_ratio
-          << ", solid_nodes: " << m.solid_nodes;
+        y << ", poisson_ratio: " << m.poisson_ratio << ", solid_nodes: " << m.solid_nodes;
+      if (m.damping_ratio >= 0) y << ", damping_ratio: " << m.damping_ratio;
       y << "}\n";
       if (!o.fixed_vertices.empty()) {
         y << "    fixed_vertices: [";

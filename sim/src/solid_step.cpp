@@ -39,6 +39,7 @@ using ColMatX3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
 
 constexpr int kDefaultNodes = 300;       // lattice nodes per organ when the material gives none
 constexpr int kDefaultIterations = 6;    // local/global iterations per step
+constexpr double kDefaultDampingRatio = 0.5;  // Rayleigh ratio at the lowest shear mode
 constexpr int kRotationIterations = 2;   // warm-started rotation-fit iterations per local step
 
 Mat3 quat_matrix(const double* q) {
@@ -167,8 +168,8 @@ void compile_solids(const SceneDesc& scene, Model& m) {
     const std::string where = "organ " + r.name + ": material";
     if (!(mat.poisson_ratio > -1.0 && mat.poisson_ratio < 0.5))
       throw InputError(where, "poisson_ratio must lie in (-1, 0.5)");
-    if (!(mat.damping_ratio >= 0.0) || !std::isfinite(mat.damping_ratio))
-      throw InputError(where, "damping_ratio must be >= 0");
+    if (!std::isfinite(mat.damping_ratio))
+      throw InputError(where, "damping_ratio must be finite (< 0: the default 0.5)");
     if (!(mat.young_modulus_pa > 0.0) || !std::isfinite(mat.young_modulus_pa))
       throw InputError(where, "young_modulus_pa must be > 0 for the solid model");
     if (mat.solid_nodes < 0 || mat.solid_iterations < 0)
@@ -195,7 +196,7 @@ void compile_solids(const SceneDesc& scene, Model& m) {
     b.embed_w = L.embed_w;
     b.young_modulus_pa = mat.young_modulus_pa;
     b.poisson_ratio = mat.poisson_ratio;
-    b.damping_ratio = mat.damping_ratio;
+    b.damping_ratio = mat.damping_ratio < 0.0 ? kDefaultDampingRatio : mat.damping_ratio;
     b.dt_s = h;
     b.iterations = mat.solid_iterations > 0 ? mat.solid_iterations : kDefaultIterations;
     double lambda = 0.0, mu = 0.0;

@@ -38,7 +38,7 @@ struct MaterialSpec {
                                      // default: surface springs alone do not hold the volume
   // solid model (sim/solid.hpp): written only for model: solid
   double poisson_ratio = 0.45;
-  double damping_ratio = 0.5;        // Rayleigh damping ratio at the organ's lowest shear mode
+  double damping_ratio = -1.0;       // < 0: the model's default (sim::Material::damping_ratio)
   int solid_nodes = 0;               // lattice node budget; 0 = the core's default
 };
 

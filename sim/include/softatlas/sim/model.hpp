@@ -46,9 +46,11 @@ struct Material {
   double stiffness = 0.0;            // > 0: every spring gets this k (N/m) instead of 000 eq 9
   double damping = -1.0;             // >= 0: every spring gets this d (N s/m) instead of 000 eq 10
   double damping_scale = 1.0;        // multiplies 000 eq 10
-  // >= 0: every spring gets the damping ratio zeta of its own two-vertex mode instead of 000 eq 10,
-  // d = zeta 2 sqrt(k m_a m_b / (m_a + m_b)) (zeta = 1: critical). 000 eq 10 as used is
-  // zeta = (m_a + m_b) / sqrt(m_a m_b) >= 2, larger on small vertices (docs/physics.md).
+  // Damping ratio zeta (1: critical); < 0: the model's default. Spring models: >= 0 gives every
+  // spring the ratio of its own two-vertex mode instead of 000 eq 10,
+  // d = zeta 2 sqrt(k m_a m_b / (m_a + m_b)); 000 eq 10 as used is zeta = (m_a + m_b) / sqrt(m_a m_b)
+  // >= 2, larger on small vertices (docs/physics.md). Solid model: Rayleigh damping with this ratio
+  // at the organ's lowest shear mode, default 0.5 (sim/solid.hpp).
   double damping_ratio = -1.0;
   double vertex_mass_kg = 0.0;       // > 0: every vertex gets this mass instead of 000 eq 8
   double elastica_a = 1.0;           // 000 eq 5
@@ -77,7 +79,6 @@ struct Material {
   double volume_stiffness = 0.0;     // volume constraint, 0..1 per step; 0 = off
   // solid model (sim/solid.hpp)
   double poisson_ratio = 0.45;       // Lame lambda, mu from E and nu
-  double damping_ratio = 0.5;        // Rayleigh damping: ratio at the lowest shear mode
   int solid_nodes = 0;               // lattice node budget; 0 = 300
   int solid_iterations = 0;          // local/global iterations per step; 0 = 6
 };
