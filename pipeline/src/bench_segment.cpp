@@ -339,6 +339,12 @@ int cmd_bench_segment(const std::vector<std::string>& args) {
   app.add_option("--method", options.method, "graph_cut (default) or growth (the earlier region growing)");
   app.add_option("--smoothness", options.cut_smoothness_mm, "graph cut: boundary weight, mm");
   app.add_option("--distance-weight", options.cut_distance_weight, "graph cut: distance prior, nats per radius");
+  bool no_tubes = false, no_walls = false;
+  app.add_flag("--no-tubes", no_tubes, "no tube model for the aorta");
+  app.add_flag("--no-walls", no_walls, "no wall model for the heart");
+  app.add_option("--background-model", options.cut_background, "graph cut: image (whole image) or box");
+  app.add_option("--window-weight", options.cut_window_weight, "graph cut: share of the seeds' window");
+  app.add_option("--radius-scale", options.cut_radius_scale, "graph cut: scale of the organs' radius priors");
   app.add_flag("--json", as_json, "machine-readable result on stdout");
   std::vector<std::string> rest(args.begin() + 2, args.end());
   std::reverse(rest.begin(), rest.end());
@@ -347,6 +353,8 @@ int cmd_bench_segment(const std::vector<std::string>& args) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  if (no_tubes) options.tubes.clear();
+  if (no_walls) options.walls.clear();
   if (draws < 1) throw InputError("--draws", "expected at least 1 draw");
   if (!write_dir.empty()) {
     fs::create_directories(write_dir);

@@ -33,10 +33,10 @@ OrganPrior prior_of(const std::string& name) {
       {"kidney_right", {25, 450, 30, 150, 40}},
       {"adrenal_gland_left", {5, 30, 30, 60, 30}},
       {"adrenal_gland_right", {5, 30, 30, 60, 30}},
-      {"aorta", {8, 500, 40, 250, 100}},
-      {"inferior_vena_cava", {8, 300, 40, 120, 50}},
-      {"portal_vein_and_splenic_vein", {6, 150, 40, 150, 50}},
-      {"heart", {40, 1500, 40, 300, 150}},
+      {"aorta", {15, 500, 40, 250, 100}},
+      {"inferior_vena_cava", {12, 300, 40, 120, 50}},
+      {"portal_vein_and_splenic_vein", {8, 150, 40, 150, 50}},
+      {"heart", {45, 1500, 40, 300, 150}},
       {"urinary_bladder", {30, 800, 10, 10, 20}},
       {"colon", {20, 2500, none, none, 0}},
       {"small_bowel", {20, 2500, none, none, 0}},
@@ -186,11 +186,23 @@ std::vector<int16_t> seeded_cut(const Volume& ct, const std::vector<float>& smoo
   std::vector<std::vector<float>> gain(organs.size());  // log p_organ - log p_image per bin
   std::vector<OrganPrior> priors;
   for (size_t r = 0; r < organs.size(); ++r) {
-    const OrganPrior pr = prior_of(label_name(organs[r].id));
+    OrganPrior pr = prior_of(label_name(organs[r].id));
+    pr.radius_mm *= o.cut_radius_scale;
     priors.push_back(pr);
     std::vector<double> counts(kBins, 0.0);
     for (double v : samples[r]) counts[bin_of(v)] += 1;
     std::vector<double> p = density(counts, h);
+    // Five seeds may miss part of an organ's range (the chambers' densest contrast when most
+    // seeds lie in the myocardium): a flat window of the seeds' mean - 2.5 sd .. mean + 4 sd
+    // (sd clamped to 20-100 HU, as the region growing's window) carries a share of the density.
+    double s1 = 0, s2 = 0;
+    for (double v : samples[r]) s1 += v, s2 += v * v;
+    const double cnt = std::max<double>(1, samples[r].size()), mu = s1 / cnt;
+    const double sd = std::clamp(std::sqrt(std::max(0.0, s2 / cnt - mu * mu)), 20.0, o.intensity_sigma_max_hu);
+    std::vector<double> window(kBins, 0.0);
+    for (int b = bin_of(mu - o.intensity_sigma_scale * sd); b <= bin_of(mu + o.intensity_sigma_scale_high * sd); ++b) window[b] = 1;
+    const std::vector<double> pw = density(window, h);
+    for (int b = 0; b < kBins; ++b) p[b] = (1 - o.cut_window_weight) * p[b] + o.cut_window_weight * pw[b];
     const double prior_hu = enhanced ? pr.enhanced_hu : pr.unenhanced_hu;
     if (!phase_from.empty() && std::isfinite(prior_hu)) {
       std::vector<double> pc(kBins, 0.0);
@@ -235,11 +247,20 @@ std::vector<int16_t> seeded_cut(const Volume& ct, const std::vector<float>& smoo
         return ct.index(lo[0] + x, lo[1] + y, lo[2] + z);
       };
       const double radius = priors[r].radius_mm;
+      std::vector<float> gain_box = gain[r];
+      if (o.cut_background == "box") {
+        std::vector<double> counts(kBins, 0.0);
+        for (size_t b = 0; b < m; ++b) counts[bin_of(smooth[global(b)])] += 1;
+        const std::vector<double> p_box = density(counts, h);
+        for (int b = 0; b < kBins; ++b)
+          gain_box[b] = static_cast<float>(std::clamp(gain[r][b] + std::log((p_image[b] + 1e-7) / (p_box[b] + 1e-7)),
+                                                      -o.cut_max_nats, o.cut_max_nats));
+      }
       const double area[3] = {sp[1] * sp[2], sp[0] * sp[2], sp[0] * sp[1]};
       for (size_t b = 0; b < m; ++b) {
         const size_t v = global(b);
         const double dist = distance_to(tree, world(v));
-        const double unary = gain[r][bin_of(smooth[v])] - distance_weight * std::max(0.0, dist - radius) / radius;
+        const double unary = gain_box[bin_of(smooth[v])] - distance_weight * std::max(0.0, dist - radius) / radius;
         cut.preference[b] = static_cast<float>(unary * voxel_mm3);
         const size_t step[3] = {1, static_cast<size_t>(d[0]), static_cast<size_t>(d[0]) * d[1]};
         const int bc[3] = {static_cast<int>(b % cut.dims[0]), static_cast<int>((b / cut.dims[0]) % cut.dims[1]),

@@ -272,7 +272,7 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
   // Tubes (large vessels).
   std::vector<char> vessel_wall(n, 0);
   for (size_t r = 0; r < regions.size(); ++r) {
-    if (regions[r].id == 0 ||
+    if (regions[r].id == 0 || o.method != "growth" ||  // the tube and wall models belong to the growth
         std::none_of(o.tubes.begin(), o.tubes.end(), [&](const std::string& t) { return label_id(t) == regions[r].id; }))
       continue;
     std::vector<char> other(n, 0);
@@ -326,7 +326,7 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
   double lowest = std::numeric_limits<double>::infinity(), widest = 0;
   for (size_t r = 0; r < regions.size(); ++r)
     for (const auto& [name, wall] : o.walls)
-      if (regions[r].id != 0 && label_id(name) == regions[r].id) {
+      if (regions[r].id != 0 && o.method == "growth" && label_id(name) == regions[r].id) {
         wall_min[r] = wall.min_hu, wall_mm[r] = wall.thickness_mm, wall_hi[r] = regions[r].lo;
         lowest = std::min(lowest, wall_min[r]), widest = std::max(widest, wall_mm[r]);
       }

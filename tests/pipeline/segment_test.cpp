@@ -60,7 +60,9 @@ TEST(SeededSegmentation, TubeFillsAVesselWhoseContrastIsACrescent) {
   for (double z : {6.0, 20.0, 35.0, 50.0, 70.0, 82.0}) seeds.organs["aorta"].push_back({cx, cy - 8.0, z});
   seeds.background = {{10, 10, 45}, {80, 10, 45}, {10, 80, 45}, {80, 80, 20}};
   SegmentOptions with;
+  with.method = "growth";  // the tube, wall and barrier models are the growth method's
   SegmentOptions without;
+  without.method = "growth";  // the tube, wall and barrier models are the growth method's
   without.tubes.clear();
   const double d_with = dice_with(segment_seeded(ct, seeds, with, "synthetic"), 52, lumen);
   const double d_without = dice_with(segment_seeded(ct, seeds, without, "synthetic"), 52, lumen);
@@ -87,7 +89,9 @@ TEST(SeededSegmentation, TubeStopsAtAFilledLumenWrappedInSoftTissue) {
   for (double z : {6.0, 20.0, 35.0, 50.0, 70.0, 82.0}) seeds.organs["aorta"].push_back({cx, cy, z});
   seeds.background = {{10, 10, 45}, {80, 10, 45}, {10, 80, 45}, {80, 80, 20}};
   SegmentOptions with;
+  with.method = "growth";  // the tube, wall and barrier models are the growth method's
   SegmentOptions without;
+  without.method = "growth";  // the tube, wall and barrier models are the growth method's
   without.tube_lumen_min_hu = 0;
   const double d_with = dice_with(segment_seeded(ct, seeds, with, "synthetic"), 52, lumen);
   const double d_without = dice_with(segment_seeded(ct, seeds, without, "synthetic"), 52, lumen);
@@ -113,7 +117,9 @@ TEST(SeededSegmentation, HeartWallJoinsTheMyocardiumButNotTheLiver) {
   seeds.organs["heart"] = {{c, c, c}, {c + 12, c, c}, {c - 12, c, c}, {c, c + 12, c}, {c, c, c + 12}};
   seeds.background = {{8, 8, 95}, {95, 95, 95}, {8, 95, 60}, {52, 52, 8}};
   SegmentOptions with;
+  with.method = "growth";  // the tube, wall and barrier models are the growth method's
   SegmentOptions without;
+  without.method = "growth";  // the tube, wall and barrier models are the growth method's
   without.walls.clear();
   const Volume seg = segment_seeded(ct, seeds, with, "synthetic");
   const double d_with = dice_with(seg, 51, heart);
@@ -141,6 +147,7 @@ TEST(SeededSegmentation, FrontsMeetAtTheEdgeNotHalfwayBetweenSeeds) {
   seeds.organs["aorta"] = {{30, 30, 3}};               // one seed at the bottom end
   seeds.background = {{30, 44, 140}, {5, 5, 75}};      // 6 mm outside the vessel near its top
   SegmentOptions o;
+  o.method = "growth";  // the tube, wall and barrier models are the growth method's
   o.tubes.clear();  // the region grower alone
   const Volume seg = segment_seeded(ct, seeds, o, "synthetic");
   // The vessel's core (its rim is partial volume, below the seed window) near the click.
@@ -176,6 +183,7 @@ TEST(SeededSegmentation, BackgroundClickInAVeinDoesNotEatTheChamber) {
   seeds.background = {{c + 28, c, c}, {5, 5, 5}};
   auto lost = [&](double weight) {
     SegmentOptions o;
+    o.method = "growth";  // the tube, wall and barrier models are the growth method's
     o.walls.clear();
     o.edge_bin_hu = 100;  // noise steps stay in the lowest bin: the fronts meet by path length alone
     o.background_length_weight = weight;

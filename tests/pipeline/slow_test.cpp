@@ -81,6 +81,14 @@ std::vector<std::array<double, 3>> spread(const Volume& v, const std::vector<siz
 }
 
 // Reference labels of several masks on one CT grid (nearest voxel through world coordinates).
+// The simulated user's protocol (deep clicks, ring, corrections) measures the region growing with
+// its tube and wall models; the default graph cut is measured by `softatlas bench segment`.
+SegmentOptions growth_options() {
+  SegmentOptions o;
+  o.method = "growth";
+  return o;
+}
+
 Volume labels_on_grid(const Volume& grid, const std::vector<std::pair<std::string, int>>& masks) {
   Volume out;
   out.dims = grid.dims;
@@ -204,7 +212,7 @@ Volume segment_like_a_user(const Volume& ct, const Volume& ref, const std::vecto
   Seeds seeds;
   for (const auto& [name, id] : organs) seeds.organs[name] = deep_points(ref, id, 10);
   seeds.background = ring_points(ref, organs, ring);
-  Volume seg = segment_seeded(ct, seeds, SegmentOptions{}, path);
+  Volume seg = segment_seeded(ct, seeds, growth_options(), path);
   for (int c = 0; c < corrections; ++c) {
     std::vector<char> leak(seg.values.size(), 0);
     for (size_t x = 0; x < leak.size(); ++x) {
@@ -225,7 +233,7 @@ Volume segment_like_a_user(const Volume& ct, const Volume& ref, const std::vecto
     const auto click = centre_of_largest(ct, leak, 50);
     if (!click) break;
     seeds.background.push_back(*click);
-    seg = segment_seeded(ct, seeds, SegmentOptions{}, path);
+    seg = segment_seeded(ct, seeds, growth_options(), path);
     if (std::getenv("SOFTATLAS_VERBOSE"))  // Dice after each click
       for (const auto& [name, id] : organs)
         std::printf("  click %d at (%.1f, %.1f, %.1f): %s %.4f\n", c + 1, (*click)[0], (*click)[1], (*click)[2], name.c_str(),
