@@ -7,7 +7,9 @@
 #include <functional>
 #include <random>
 
+#include "softatlas/pipeline/bench_segment.hpp"
 #include "softatlas/pipeline/segment.hpp"
+#include "test_util.hpp"
 
 namespace softatlas::pipeline {
 namespace {
@@ -203,4 +205,41 @@ TEST(SeededSegmentation, BackgroundClickInAVeinDoesNotEatTheChamber) {
 }
 
 }  // namespace
+// The fair protocol (`softatlas bench segment`), two of its draws: 5 random interior seeds per
+// organ, 10 random background points, no corrections, on the abdomen slab and its unenhanced
+// variant. Floors at the measured level (docs/pipeline.md); the pancreas' volume is the runaway
+// check (the region growing returned 26-49x its reference volume there).
+TEST(SeededSegmentation, FairProtocolDrawsOnTheSlab) {
+  const EvalCase slab = load_eval_case(SOFTATLAS_SHARED_DATA, "slab");
+  for (const std::string variant : {"original", "unenhanced"}) {
+    const EvalCase c = make_variant(slab, variant);
+    const EvalRun r = run_draw(c, draw_seed(0));
+    ASSERT_EQ(c.organs[0].name, "liver");
+    ASSERT_EQ(c.organs[1].name, "spleen");
+    ASSERT_EQ(c.organs[3].name, "pancreas");
+    std::printf("%s: liver %.3f (x%.2f), spleen %.3f (x%.2f), pancreas x%.2f\n", variant.c_str(), r.dice[0],
+                r.volume_ratio[0], r.dice[1], r.volume_ratio[1], r.volume_ratio[3]);
+    EXPECT_GE(r.dice[0], variant == "original" ? 0.85 : 0.78);
+    EXPECT_GE(r.dice[1], 0.78);
+    EXPECT_LE(r.volume_ratio[0], 1.3);
+    EXPECT_LE(r.volume_ratio[1], 1.3);
+    EXPECT_LE(r.volume_ratio[3], 5.0);
+  }
+}
+
+// Same seed, same points; different seeds, different points.
+TEST(SeededSegmentation, FairProtocolDrawsAreFixed) {
+  const EvalCase c = load_eval_case(SOFTATLAS_SHARED_DATA, "heart_crop");
+  const Seeds a = draw_seeds(c, draw_seed(3)), b = draw_seeds(c, draw_seed(3)), other = draw_seeds(c, draw_seed(4));
+  ASSERT_EQ(a.organs.at("heart").size(), 5u);
+  ASSERT_EQ(a.background.size(), 10u);
+  EXPECT_EQ(a.organs.at("heart"), b.organs.at("heart"));
+  EXPECT_EQ(a.background, b.background);
+  EXPECT_NE(a.organs.at("heart"), other.organs.at("heart"));
+  for (const auto& p : a.organs.at("heart")) {  // inside the reference heart
+    const auto v = c.ref.voxel(p);
+    EXPECT_EQ(std::lround(c.ref.values[c.ref.index(int(std::lround(v[0])), int(std::lround(v[1])), int(std::lround(v[2])))]), 51);
+  }
+}
+
 }  // namespace softatlas::pipeline
