@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "softatlas/io/organ_set.hpp"
+#include "softatlas/pipeline/bench_segment.hpp"
 #include "softatlas/pipeline/build.hpp"
 #include "softatlas/pipeline/cli.hpp"
 #include "softatlas/pipeline/label_table.hpp"
@@ -377,4 +378,35 @@ TEST(SlowWorkflow, SnakemakeBuildsTheSampleAndSkipsItNextTime) {
 }
 
 }  // namespace
+// The fair protocol, all 10 draws of `softatlas bench segment` on the abdomen slab: floors at the
+// measured level of the graph cut (docs/pipeline.md), and no runaway liver or spleen.
+TEST(SlowSeeded, FairProtocolTenDrawsOnTheSlab) {
+  const EvalCase c = load_eval_case(SOFTATLAS_SHARED_DATA, "slab");
+  double liver = 0, spleen = 0;
+  for (int k = 0; k < 10; ++k) {
+    const EvalRun r = run_draw(c, draw_seed(k));
+    liver += r.dice[0] / 10, spleen += r.dice[1] / 10;
+    EXPECT_GE(r.dice[0], 0.80) << "draw " << k;
+    EXPECT_LE(r.volume_ratio[0], 1.3) << "draw " << k;
+    EXPECT_LE(r.volume_ratio[1], 1.3) << "draw " << k;
+  }
+  std::printf("mean Dice liver %.3f, spleen %.3f\n", liver, spleen);
+  EXPECT_GE(liver, 0.85);
+  EXPECT_GE(spleen, 0.85);
+}
+
+// `--organs all` builds every label of the map (bones, muscles and the rest included).
+TEST(SlowBuild, OrgansAllBuildsEveryLabel) {
+  const std::string out = (std::filesystem::temp_directory_path() / "softatlas-slow-organs-all").string();
+  std::filesystem::remove_all(out);
+  ASSERT_EQ(cli_main({"build", abdomen("ct_from_dicom.nii.gz"), "--labels", abdomen("example_seg_dicom.nii.gz"),
+                      "--organs", "all", "-q", "-o", out}),
+            0);
+  size_t organs = 0;
+  for (const auto& e : std::filesystem::directory_iterator(out + "/organs")) organs += e.path().extension() == ".ply";
+  EXPECT_EQ(organs, 31u);  // the 31 labels of the slab's map
+  EXPECT_TRUE(std::filesystem::exists(out + "/organs/vertebrae_T12.ply"));
+  std::filesystem::remove_all(out);
+}
+
 }  // namespace softatlas::pipeline
