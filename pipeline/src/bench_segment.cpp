@@ -28,29 +28,6 @@ using json = nlohmann::json;
 namespace softatlas::pipeline {
 namespace {
 
-// Reference masks resampled (nearest voxel centre) onto `grid` with the given ids; the first
-// mask wins where they overlap.
-Volume masks_on_grid(const Volume& grid, const std::vector<std::pair<std::string, int>>& masks) {
-  Volume out;
-  out.dims = grid.dims;
-  out.ijk_to_ras = grid.ijk_to_ras;
-  out.format = "nifti";
-  out.values.assign(grid.values.size(), 0.0f);
-  for (const auto& [path, id] : masks) {
-    const Volume m = read_volume(path);
-    for (int k = 0; k < grid.dims[2]; ++k)
-      for (int j = 0; j < grid.dims[1]; ++j)
-        for (int i = 0; i < grid.dims[0]; ++i) {
-          const auto v = m.voxel(grid.world(i, j, k));
-          const long a = std::lround(v[0]), b = std::lround(v[1]), c = std::lround(v[2]);
-          if (a < 0 || b < 0 || c < 0 || a >= m.dims[0] || b >= m.dims[1] || c >= m.dims[2]) continue;
-          if (m.values[m.index(int(a), int(b), int(c))] != 0 && out.values[out.index(i, j, k)] == 0)
-            out.values[out.index(i, j, k)] = static_cast<float>(id);
-        }
-  }
-  return out;
-}
-
 // Unenhanced HU of the organs whose contrast the "unenhanced" variant removes (typical
 // non-contrast CT values; kidneys and adrenals for CTs that have them).
 const std::map<std::string, double>& unenhanced_hu() {
@@ -161,6 +138,27 @@ std::vector<float> depth_mm(const Volume& ref, int id) {
 uint64_t pick(std::mt19937_64& rng, size_t n) { return rng() % n; }
 
 }  // namespace
+
+Volume masks_on_grid(const Volume& grid, const std::vector<std::pair<std::string, int>>& masks) {
+  Volume out;
+  out.dims = grid.dims;
+  out.ijk_to_ras = grid.ijk_to_ras;
+  out.format = "nifti";
+  out.values.assign(grid.values.size(), 0.0f);
+  for (const auto& [path, id] : masks) {
+    const Volume m = read_volume(path);
+    for (int k = 0; k < grid.dims[2]; ++k)
+      for (int j = 0; j < grid.dims[1]; ++j)
+        for (int i = 0; i < grid.dims[0]; ++i) {
+          const auto v = m.voxel(grid.world(i, j, k));
+          const long a = std::lround(v[0]), b = std::lround(v[1]), c = std::lround(v[2]);
+          if (a < 0 || b < 0 || c < 0 || a >= m.dims[0] || b >= m.dims[1] || c >= m.dims[2]) continue;
+          if (m.values[m.index(int(a), int(b), int(c))] != 0 && out.values[out.index(i, j, k)] == 0)
+            out.values[out.index(i, j, k)] = static_cast<float>(id);
+        }
+  }
+  return out;
+}
 
 Volume resample(const Volume& v, const std::array<int, 3>& to, bool nearest) {
   Volume out;

@@ -91,23 +91,7 @@ SegmentOptions growth_options() {
 }
 
 Volume labels_on_grid(const Volume& grid, const std::vector<std::pair<std::string, int>>& masks) {
-  Volume out;
-  out.dims = grid.dims;
-  out.ijk_to_ras = grid.ijk_to_ras;
-  out.values.assign(grid.values.size(), 0.0f);
-  for (const auto& [path, id] : masks) {
-    const Volume m = read_volume(path);
-    for (int k = 0; k < grid.dims[2]; ++k)
-      for (int j = 0; j < grid.dims[1]; ++j)
-        for (int i = 0; i < grid.dims[0]; ++i) {
-          const auto v = m.voxel(grid.world(i, j, k));
-          const long a = std::lround(v[0]), b = std::lround(v[1]), c = std::lround(v[2]);
-          if (a < 0 || b < 0 || c < 0 || a >= m.dims[0] || b >= m.dims[1] || c >= m.dims[2]) continue;
-          if (m.values[m.index(int(a), int(b), int(c))] != 0 && out.values[out.index(i, j, k)] == 0)
-            out.values[out.index(i, j, k)] = static_cast<float>(id);
-        }
-  }
-  return out;
+  return masks_on_grid(grid, masks);
 }
 
 // Voxels at least half as deep as the deepest voxel of label `id`, spread to n points.

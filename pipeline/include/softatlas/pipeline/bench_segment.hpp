@@ -54,6 +54,10 @@ struct EvalRun {
 };
 EvalRun run_draw(const EvalCase& c, uint64_t seed, const SegmentOptions& options = SegmentOptions{});
 
+// Binary masks (files) resampled (nearest voxel centre) onto `grid` as one label map with the
+// given ids; the first mask wins where they overlap.
+Volume masks_on_grid(const Volume& grid, const std::vector<std::pair<std::string, int>>& masks);
+
 // Resamples a volume onto dims `to` covering the same world extent (voxel corners): trilinear for
 // the CT, nearest for label maps.
 Volume resample(const Volume& v, const std::array<int, 3>& to, bool nearest);
