@@ -43,6 +43,7 @@ constexpr const char* kUsage = R"(usage: softatlas <command> [options]
   bench sim --mesh A.obj [B.obj ...] --model tmsm|cmsm|nmsm --integrator I --steps N --json
   bench restore SET --organ NAME [--pull-mm 30] [--model M] --json
   bench pipeline|render|haptic ... --json
+  bench segment [--cases ...] [--variants ...] --json   seeded segmentation, fixed random seed draws
   bench accuracy|stability [--quick] --out DIR
 
 Run 'softatlas <command> --help' for the options of one command.
@@ -186,7 +187,7 @@ int dispatch(const std::vector<std::string>& args) {
 #endif
   }
   if (cmd == "build" || cmd == "segment" || cmd == "check" || cmd == "export" ||
-      (cmd == "bench" && sub == "pipeline")) {
+      (cmd == "bench" && (sub == "pipeline" || sub == "segment"))) {
 #ifdef SOFTATLAS_HAVE_PIPELINE
     return softatlas::pipeline::cli_main(args);
 #else

@@ -38,6 +38,21 @@ void StageTimes::add(const std::string& stage, double s) {
 
 namespace {
 
+// The group of a TotalSegmentator name for --organs: organs (the default soft set), vessels,
+// bones, muscles, or other.
+std::string label_group(const std::string& n) {
+  auto has = [&](const char* part) { return n.find(part) != std::string::npos; };
+  if (has("vertebra") || has("rib_") || has("humerus") || has("scapula") || has("clavicula") || has("femur") ||
+      has("hip_") || n == "sacrum" || n == "sternum" || n == "costal_cartilages" || n == "skull")
+    return "bones";
+  if (has("autochthon") || has("iliopsoas") || has("gluteus")) return "muscles";
+  if (is_default_soft_organ(n)) return "organs";
+  if (has("vena") || has("artery") || has("vein") || n == "brachiocephalic_trunk" || n == "aorta" || has("iliac"))
+    return "vessels";
+  return "other";
+}
+
+
 using Clock = std::chrono::steady_clock;
 
 double since(Clock::time_point t0) {
@@ -224,6 +239,10 @@ BuildResult build_organ_set(const BuildOptions& o) {
         if (v != 0) ++l.counts[static_cast<int>(v)];
       }
       if (l.counts.empty()) throw InputError(src.path, "the label map has no labels (every voxel is 0)");
+      // A 0/1 mask read as a label map would build TotalSegmentator's label 1 (spleen) silently.
+      if (src.organ.empty() && l.volume.label_names.empty() && l.counts.size() == 1 && l.counts.begin()->first == 1)
+        throw InputError(src.path, std::string("a 0/1 mask without an organ name (as a label map it would build label 1, ") +
+                                       "spleen); name it: --labels NAME=" + src.path);
       provenance["labels:" + src.path] = sha256_file(src.path);
       labels.push_back(std::move(l));
     }
@@ -283,7 +302,23 @@ BuildResult build_organ_set(const BuildOptions& o) {
       }
       return j;
     };
-    std::vector<std::string> names = o.organs;
+    // --organs may name groups: all, organs (the default soft set), vessels, bones, muscles, other.
+    std::vector<std::string> names;
+    std::vector<std::string> groups;
+    for (const std::string& nm : o.organs) {
+      if (nm == "all" || nm == "organs" || nm == "vessels" || nm == "bones" || nm == "muscles" || nm == "other") groups.push_back(nm);
+      else if (std::find(names.begin(), names.end(), nm) == names.end()) names.push_back(nm);
+    }
+    auto present = [&](auto&& take) {
+      for (const auto& l : labels)
+        for (const auto& [v, count] : l.counts) {
+          const std::string nm = l.source.organ.empty() ? name_of(l, v) : l.source.organ;
+          if (!nm.empty() && take(nm) && std::find(names.begin(), names.end(), nm) == names.end()) names.push_back(nm);
+        }
+    };
+    for (const std::string& g : groups) present([&](const std::string& nm) { return g == "all" || label_group(nm) == g; });
+    if (names.empty() && !groups.empty())
+      throw InputError("--organs", "no label of the group(s) given is in the label map");
     if (names.empty()) {
       for (const auto& l : labels) {
         if (!l.source.organ.empty()) {
@@ -300,6 +335,22 @@ BuildResult build_organ_set(const BuildOptions& o) {
       if (names.empty())
         throw InputError(labels.front().source.path,
                          "no soft organ in the label map; name the organs to build with --organs");
+      // Say what was left out, and why.
+      std::map<std::string, std::vector<std::string>> left;
+      for (const auto& l : labels)
+        for (const auto& [v, count] : l.counts) {
+          const std::string nm = l.source.organ.empty() ? name_of(l, v) : l.source.organ;
+          if (nm.empty()) left["no name in the label table"].push_back(std::to_string(v));
+          else if (std::find(names.begin(), names.end(), nm) == names.end()) left[label_group(nm)].push_back(nm);
+        }
+      for (const auto& [why, list] : left) {
+        std::string all_names;
+        for (const auto& x : list) all_names += (all_names.empty() ? "" : ", ") + x;
+        const std::string add = why.rfind("no name", 0) == 0 ? std::string("--labels NAME=MASK") : "--organs " + why;
+        if (!o.quiet)
+          std::fprintf(stderr, "[softatlas build] labels: left out %zu (%s; add with %s or --organs all): %s\n", list.size(),
+                       why.c_str(), add.c_str(), all_names.c_str());
+      }
     }
     for (const std::string& name : names) {
       OrganJob j = find_job(name);

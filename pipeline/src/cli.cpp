@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "softatlas/pipeline/bench_segment.hpp"
 #include "softatlas/pipeline/build.hpp"
 #include "softatlas/pipeline/export_web.hpp"
 #include "softatlas/pipeline/label_table.hpp"
@@ -213,52 +214,6 @@ int cmd_export(const std::vector<std::string>& args) {
   return 0;
 }
 
-// Resamples a volume onto dims `to` covering the same world extent (voxel corners): trilinear for
-// the CT, nearest for label maps. Used by `bench pipeline --resample` to make large test cases.
-Volume resample(const Volume& v, const std::array<int, 3>& to, bool nearest) {
-  Volume out;
-  out.dims = to;
-  out.path = v.path;
-  out.format = v.format;
-  double scale[3];
-  for (int d = 0; d < 3; ++d) scale[d] = static_cast<double>(v.dims[d]) / to[d];
-  // New voxel centre c maps to old continuous index (c + 0.5) * scale - 0.5.
-  out.ijk_to_ras = v.ijk_to_ras;
-  for (int r = 0; r < 3; ++r) {
-    double shift = 0;
-    for (int c = 0; c < 3; ++c) {
-      out.ijk_to_ras[r * 4 + c] = v.ijk_to_ras[r * 4 + c] * scale[c];
-      shift += v.ijk_to_ras[r * 4 + c] * (0.5 * scale[c] - 0.5);
-    }
-    out.ijk_to_ras[r * 4 + 3] = v.ijk_to_ras[r * 4 + 3] + shift;
-  }
-  out.values.resize(static_cast<size_t>(to[0]) * to[1] * to[2]);
-  auto at = [&](int i, int j, int k) {
-    i = std::clamp(i, 0, v.dims[0] - 1), j = std::clamp(j, 0, v.dims[1] - 1), k = std::clamp(k, 0, v.dims[2] - 1);
-    return v.values[v.index(i, j, k)];
-  };
-  for (int k = 0; k < to[2]; ++k)
-    for (int j = 0; j < to[1]; ++j)
-      for (int i = 0; i < to[0]; ++i) {
-        const double x = (i + 0.5) * scale[0] - 0.5, y = (j + 0.5) * scale[1] - 0.5, z = (k + 0.5) * scale[2] - 0.5;
-        float val;
-        if (nearest) {
-          val = at(static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y)), static_cast<int>(std::lround(z)));
-        } else {
-          const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y)), z0 = static_cast<int>(std::floor(z));
-          const double fx = x - x0, fy = y - y0, fz = z - z0;
-          double acc = 0;
-          for (int c = 0; c < 8; ++c) {
-            const double w = ((c & 1) ? fx : 1 - fx) * ((c & 2) ? fy : 1 - fy) * ((c & 4) ? fz : 1 - fz);
-            acc += w * at(x0 + (c & 1), y0 + ((c >> 1) & 1), z0 + ((c >> 2) & 1));
-          }
-          val = static_cast<float>(std::lround(acc));
-        }
-        out.values[out.index(i, j, k)] = val;
-      }
-  return out;
-}
-
 int cmd_bench(const std::vector<std::string>& args) {
   CLI::App app{"softatlas bench pipeline: time the build stage by stage", "softatlas bench pipeline"};
   BuildCli cli;
@@ -356,7 +311,9 @@ int cli_main(const std::vector<std::string>& args) {
   if (cmd == "check") return cmd_check(args);
   if (cmd == "export") return cmd_export(args);
   if (cmd == "bench" && args.size() > 1 && args[1] == "pipeline") return cmd_bench(args);
-  std::fprintf(stderr, "softatlas: '%s' is not a pipeline command (build, segment, check, export, bench pipeline)\n",
+  if (cmd == "bench" && args.size() > 1 && args[1] == "segment") return cmd_bench_segment(args);
+  std::fprintf(stderr,
+               "softatlas: '%s' is not a pipeline command (build, segment, check, export, bench pipeline, bench segment)\n",
                cmd.c_str());
   return 2;
 }

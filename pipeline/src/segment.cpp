@@ -27,6 +27,7 @@
 #include "softatlas/pipeline/segment.hpp"
 #include "softatlas/sim/error.hpp"
 #include "grid.hpp"
+#include "seeded_cut.hpp"
 #include "tube.hpp"
 
 namespace softatlas::pipeline {
@@ -120,31 +121,6 @@ void keep_seeded(Mask& m, const std::array<int, 3>& d, const std::vector<size_t>
   m.swap(keep);
 }
 
-// Separable Gaussian blur with sigma in voxels per axis (kernel cut at 3 sigma, clamped edges).
-std::vector<float> gaussian(const std::vector<float>& in, const std::array<int, 3>& d, const double sigma[3]) {
-  std::vector<float> a = in, b(in.size());
-  const size_t stride[3] = {1, static_cast<size_t>(d[0]), static_cast<size_t>(d[0]) * d[1]};
-  for (int axis = 0; axis < 3; ++axis) {
-    if (sigma[axis] <= 0) continue;
-    const int r = static_cast<int>(std::ceil(3.0 * sigma[axis]));
-    std::vector<float> w(2 * r + 1);
-    double sum = 0;
-    for (int t = -r; t <= r; ++t) sum += w[t + r] = static_cast<float>(std::exp(-0.5 * t * t / (sigma[axis] * sigma[axis])));
-    for (float& x : w) x = static_cast<float>(x / sum);
-    for (size_t id = 0; id < a.size(); ++id) {
-      const int c = static_cast<int>((id / stride[axis]) % d[axis]);
-      float acc = 0;
-      for (int t = -r; t <= r; ++t) {
-        const int q = std::clamp(c + t, 0, d[axis] - 1);
-        acc += w[t + r] * a[id + (static_cast<long>(q) - c) * static_cast<long>(stride[axis])];
-      }
-      b[id] = acc;
-    }
-    a.swap(b);
-  }
-  return a;
-}
-
 }  // namespace
 
 Seeds read_seeds(const std::string& path) {
@@ -182,10 +158,7 @@ Seeds read_seeds(const std::string& path) {
 Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions& o, const std::string& where) {
   const auto& d = ct.dims;
   const size_t n = ct.values.size();
-  const double sp[3] = {
-      std::sqrt(ct.ijk_to_ras[0] * ct.ijk_to_ras[0] + ct.ijk_to_ras[4] * ct.ijk_to_ras[4] + ct.ijk_to_ras[8] * ct.ijk_to_ras[8]),
-      std::sqrt(ct.ijk_to_ras[1] * ct.ijk_to_ras[1] + ct.ijk_to_ras[5] * ct.ijk_to_ras[5] + ct.ijk_to_ras[9] * ct.ijk_to_ras[9]),
-      std::sqrt(ct.ijk_to_ras[2] * ct.ijk_to_ras[2] + ct.ijk_to_ras[6] * ct.ijk_to_ras[6] + ct.ijk_to_ras[10] * ct.ijk_to_ras[10])};
+  const std::array<double, 3> sp = spacing_mm(ct);
   struct Region {
     int id;
     double mu, sigma;
@@ -242,52 +215,64 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
   const double sigma[3] = {o.smoothing_mm / sp[0], o.smoothing_mm / sp[1], o.smoothing_mm / sp[2]};
   const std::vector<float> smooth = gaussian(ct.values, d, sigma);
 
-  // Ordered propagation of all fronts at once. A path's cost is its largest intensity step (in
-  // bins of edge_bin_hu), then its length in mm: a voxel goes to the front that reaches it over
-  // the lowest barrier, whatever the distance (relative fuzzy connectedness, Udupa & Saha 2003).
-  // A plain sum of length and steps favours the nearest seed: along a 60 mm stretch of noisy
-  // contrast a background click 9 mm away won it (docs/pipeline.md).
-  struct Cost {
-    int barrier;
-    float length;
-    bool operator<(const Cost& x) const { return barrier != x.barrier ? barrier < x.barrier : length < x.length; }
-  };
-  const Cost unreached{std::numeric_limits<int>::max(), 0.0f};
-  std::vector<Cost> cost(n, unreached);
   std::vector<int16_t> owner(n, -1);
-  using Item = std::pair<Cost, std::pair<size_t, int>>;
-  auto later = [](const Item& x, const Item& y) { return y.first < x.first; };
-  std::priority_queue<Item, std::vector<Item>, decltype(later)> heap(later);
-  for (size_t r = 0; r < regions.size(); ++r)
-    for (size_t s : regions[r].seeds) {
-      cost[s] = Cost{0, 0.0f};
-      heap.push({cost[s], {s, static_cast<int>(r)}});
+  if (o.method == "graph_cut") {
+    std::vector<CutOrgan> organs;
+    std::vector<size_t> background;
+    for (const auto& R : regions) {
+      if (R.id != 0) organs.push_back({R.id, R.seeds});
+      else background.insert(background.end(), R.seeds.begin(), R.seeds.end());
     }
-  while (!heap.empty()) {
-    const auto [c, item] = heap.top();
-    heap.pop();
-    const auto [id, r] = item;
-    if (owner[id] >= 0 || cost[id] < c) continue;
-    owner[id] = static_cast<int16_t>(r);
-    const Region& R = regions[r];
-    const double vi = smooth[id];
-    for_each_face_neighbour(d, id, [&, c = c, r = r](size_t q, int axis) {
-      if (owner[q] >= 0) return;
-      const double vq = smooth[q];
-      if (R.window && (vq < R.lo || vq > R.hi)) return;
-      const Cost nc{std::max(c.barrier, static_cast<int>(std::abs(vq - vi) / o.edge_bin_hu)),
-                    c.length + static_cast<float>(sp[axis] * (R.id == 0 ? o.background_length_weight : 1.0))};
-      if (nc < cost[q]) {
-        cost[q] = nc;
-        heap.push({nc, {q, r}});
+    owner = seeded_cut(ct, smooth, organs, background, o);
+  } else if (o.method == "growth") {
+    // Ordered propagation of all fronts at once. A path's cost is its largest intensity step (in
+    // bins of edge_bin_hu), then its length in mm: a voxel goes to the front that reaches it over
+    // the lowest barrier, whatever the distance (relative fuzzy connectedness, Udupa & Saha 2003).
+    // A plain sum of length and steps favours the nearest seed: along a 60 mm stretch of noisy
+    // contrast a background click 9 mm away won it (docs/pipeline.md).
+    struct Cost {
+      int barrier;
+      float length;
+      bool operator<(const Cost& x) const { return barrier != x.barrier ? barrier < x.barrier : length < x.length; }
+    };
+    const Cost unreached{std::numeric_limits<int>::max(), 0.0f};
+    std::vector<Cost> cost(n, unreached);
+    using Item = std::pair<Cost, std::pair<size_t, int>>;
+    auto later = [](const Item& x, const Item& y) { return y.first < x.first; };
+    std::priority_queue<Item, std::vector<Item>, decltype(later)> heap(later);
+    for (size_t r = 0; r < regions.size(); ++r)
+      for (size_t s : regions[r].seeds) {
+        cost[s] = Cost{0, 0.0f};
+        heap.push({cost[s], {s, static_cast<int>(r)}});
       }
-    });
+    while (!heap.empty()) {
+      const auto [c, item] = heap.top();
+      heap.pop();
+      const auto [id, r] = item;
+      if (owner[id] >= 0 || cost[id] < c) continue;
+      owner[id] = static_cast<int16_t>(r);
+      const Region& R = regions[r];
+      const double vi = smooth[id];
+      for_each_face_neighbour(d, id, [&, c = c, r = r](size_t q, int axis) {
+        if (owner[q] >= 0) return;
+        const double vq = smooth[q];
+        if (R.window && (vq < R.lo || vq > R.hi)) return;
+        const Cost nc{std::max(c.barrier, static_cast<int>(std::abs(vq - vi) / o.edge_bin_hu)),
+                      c.length + static_cast<float>(sp[axis] * (R.id == 0 ? o.background_length_weight : 1.0))};
+        if (nc < cost[q]) {
+          cost[q] = nc;
+          heap.push({nc, {q, r}});
+        }
+      });
+    }
+  } else {
+    throw InputError("segment method", "unknown method '" + o.method + "' (expected graph_cut, growth)");
   }
 
   // Tubes (large vessels).
   std::vector<char> vessel_wall(n, 0);
   for (size_t r = 0; r < regions.size(); ++r) {
-    if (regions[r].id == 0 ||
+    if (regions[r].id == 0 || o.method != "growth" ||  // the tube and wall models belong to the growth
         std::none_of(o.tubes.begin(), o.tubes.end(), [&](const std::string& t) { return label_id(t) == regions[r].id; }))
       continue;
     std::vector<char> other(n, 0);
@@ -300,7 +285,7 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     to.bright_hu = regions[r].lo + 0.5 * regions[r].sigma;
     to.lumen_min_hu = o.tube_lumen_min_hu;
     TubeReport rep;
-    const std::vector<char> tube = vessel_tube(d, sp, smooth, owner, static_cast<int>(r), other, regions[r].seeds, to, &rep);
+    const std::vector<char> tube = vessel_tube(d, sp.data(), smooth, owner, static_cast<int>(r), other, regions[r].seeds, to, &rep);
     if (tube.empty()) {
       std::fprintf(stderr, "[softatlas segment] %s: no tube (the seeds give no centreline), region kept\n",
                    label_name(regions[r].id).c_str());
@@ -341,7 +326,7 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
   double lowest = std::numeric_limits<double>::infinity(), widest = 0;
   for (size_t r = 0; r < regions.size(); ++r)
     for (const auto& [name, wall] : o.walls)
-      if (regions[r].id != 0 && label_id(name) == regions[r].id) {
+      if (regions[r].id != 0 && o.method == "growth" && label_id(name) == regions[r].id) {
         wall_min[r] = wall.min_hu, wall_mm[r] = wall.thickness_mm, wall_hi[r] = regions[r].lo;
         lowest = std::min(lowest, wall_min[r]), widest = std::max(widest, wall_mm[r]);
       }

@@ -144,6 +144,20 @@ void add_caret_label_table(const std::string& path, const std::map<int, std::str
 
 // A label map with its own table: value 7 is the heart there (the pancreas in TotalSegmentator's
 // numbering), and `--organs heart` finds it by name.
+// A 0/1 mask given without a name would build TotalSegmentator's label 1 (spleen): an error that
+// says how to name it, and nothing written.
+TEST(Build, BareMaskWithoutANameIsAnError) {
+  const std::string out = (fs::temp_directory_path() / "softatlas-test-bare-mask-set").string();
+  fs::remove_all(out);
+  try {
+    cli_main({"build", chest("ct_heart_crop.nii.gz"), "--labels", chest("heart_on_ct_heart_crop_grid.nii.gz"), "-q", "-o", out});
+    FAIL() << "a bare mask was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--labels NAME="), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(Build, LabelMapWithItsOwnTableIsReadByName) {
   test::Scratch tmp;
   Volume m = read_volume(chest("heart_on_ct_heart_crop_grid.nii.gz"));

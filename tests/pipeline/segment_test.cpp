@@ -7,7 +7,9 @@
 #include <functional>
 #include <random>
 
+#include "softatlas/pipeline/bench_segment.hpp"
 #include "softatlas/pipeline/segment.hpp"
+#include "test_util.hpp"
 
 namespace softatlas::pipeline {
 namespace {
@@ -60,7 +62,9 @@ TEST(SeededSegmentation, TubeFillsAVesselWhoseContrastIsACrescent) {
   for (double z : {6.0, 20.0, 35.0, 50.0, 70.0, 82.0}) seeds.organs["aorta"].push_back({cx, cy - 8.0, z});
   seeds.background = {{10, 10, 45}, {80, 10, 45}, {10, 80, 45}, {80, 80, 20}};
   SegmentOptions with;
+  with.method = "growth";  // the tube, wall and barrier models are the growth method's
   SegmentOptions without;
+  without.method = "growth";  // the tube, wall and barrier models are the growth method's
   without.tubes.clear();
   const double d_with = dice_with(segment_seeded(ct, seeds, with, "synthetic"), 52, lumen);
   const double d_without = dice_with(segment_seeded(ct, seeds, without, "synthetic"), 52, lumen);
@@ -87,7 +91,9 @@ TEST(SeededSegmentation, TubeStopsAtAFilledLumenWrappedInSoftTissue) {
   for (double z : {6.0, 20.0, 35.0, 50.0, 70.0, 82.0}) seeds.organs["aorta"].push_back({cx, cy, z});
   seeds.background = {{10, 10, 45}, {80, 10, 45}, {10, 80, 45}, {80, 80, 20}};
   SegmentOptions with;
+  with.method = "growth";  // the tube, wall and barrier models are the growth method's
   SegmentOptions without;
+  without.method = "growth";  // the tube, wall and barrier models are the growth method's
   without.tube_lumen_min_hu = 0;
   const double d_with = dice_with(segment_seeded(ct, seeds, with, "synthetic"), 52, lumen);
   const double d_without = dice_with(segment_seeded(ct, seeds, without, "synthetic"), 52, lumen);
@@ -113,7 +119,9 @@ TEST(SeededSegmentation, HeartWallJoinsTheMyocardiumButNotTheLiver) {
   seeds.organs["heart"] = {{c, c, c}, {c + 12, c, c}, {c - 12, c, c}, {c, c + 12, c}, {c, c, c + 12}};
   seeds.background = {{8, 8, 95}, {95, 95, 95}, {8, 95, 60}, {52, 52, 8}};
   SegmentOptions with;
+  with.method = "growth";  // the tube, wall and barrier models are the growth method's
   SegmentOptions without;
+  without.method = "growth";  // the tube, wall and barrier models are the growth method's
   without.walls.clear();
   const Volume seg = segment_seeded(ct, seeds, with, "synthetic");
   const double d_with = dice_with(seg, 51, heart);
@@ -141,6 +149,7 @@ TEST(SeededSegmentation, FrontsMeetAtTheEdgeNotHalfwayBetweenSeeds) {
   seeds.organs["aorta"] = {{30, 30, 3}};               // one seed at the bottom end
   seeds.background = {{30, 44, 140}, {5, 5, 75}};      // 6 mm outside the vessel near its top
   SegmentOptions o;
+  o.method = "growth";  // the tube, wall and barrier models are the growth method's
   o.tubes.clear();  // the region grower alone
   const Volume seg = segment_seeded(ct, seeds, o, "synthetic");
   // The vessel's core (its rim is partial volume, below the seed window) near the click.
@@ -176,6 +185,7 @@ TEST(SeededSegmentation, BackgroundClickInAVeinDoesNotEatTheChamber) {
   seeds.background = {{c + 28, c, c}, {5, 5, 5}};
   auto lost = [&](double weight) {
     SegmentOptions o;
+    o.method = "growth";  // the tube, wall and barrier models are the growth method's
     o.walls.clear();
     o.edge_bin_hu = 100;  // noise steps stay in the lowest bin: the fronts meet by path length alone
     o.background_length_weight = weight;
@@ -195,4 +205,41 @@ TEST(SeededSegmentation, BackgroundClickInAVeinDoesNotEatTheChamber) {
 }
 
 }  // namespace
+// The fair protocol (`softatlas bench segment`), two of its draws: 5 random interior seeds per
+// organ, 10 random background points, no corrections, on the abdomen slab and its unenhanced
+// variant. Floors at the measured level (docs/pipeline.md); the pancreas' volume is the runaway
+// check (the region growing returned 26-49x its reference volume there).
+TEST(SeededSegmentation, FairProtocolDrawsOnTheSlab) {
+  const EvalCase slab = load_eval_case(SOFTATLAS_SHARED_DATA, "slab");
+  for (const std::string variant : {"original", "unenhanced"}) {
+    const EvalCase c = make_variant(slab, variant);
+    const EvalRun r = run_draw(c, draw_seed(0));
+    ASSERT_EQ(c.organs[0].name, "liver");
+    ASSERT_EQ(c.organs[1].name, "spleen");
+    ASSERT_EQ(c.organs[3].name, "pancreas");
+    std::printf("%s: liver %.3f (x%.2f), spleen %.3f (x%.2f), pancreas x%.2f\n", variant.c_str(), r.dice[0],
+                r.volume_ratio[0], r.dice[1], r.volume_ratio[1], r.volume_ratio[3]);
+    EXPECT_GE(r.dice[0], variant == "original" ? 0.85 : 0.78);
+    EXPECT_GE(r.dice[1], 0.78);
+    EXPECT_LE(r.volume_ratio[0], 1.3);
+    EXPECT_LE(r.volume_ratio[1], 1.3);
+    EXPECT_LE(r.volume_ratio[3], 5.0);
+  }
+}
+
+// Same seed, same points; different seeds, different points.
+TEST(SeededSegmentation, FairProtocolDrawsAreFixed) {
+  const EvalCase c = load_eval_case(SOFTATLAS_SHARED_DATA, "heart_crop");
+  const Seeds a = draw_seeds(c, draw_seed(3)), b = draw_seeds(c, draw_seed(3)), other = draw_seeds(c, draw_seed(4));
+  ASSERT_EQ(a.organs.at("heart").size(), 5u);
+  ASSERT_EQ(a.background.size(), 10u);
+  EXPECT_EQ(a.organs.at("heart"), b.organs.at("heart"));
+  EXPECT_EQ(a.background, b.background);
+  EXPECT_NE(a.organs.at("heart"), other.organs.at("heart"));
+  for (const auto& p : a.organs.at("heart")) {  // inside the reference heart
+    const auto v = c.ref.voxel(p);
+    EXPECT_EQ(std::lround(c.ref.values[c.ref.index(int(std::lround(v[0])), int(std::lround(v[1])), int(std::lround(v[2])))]), 51);
+  }
+}
+
 }  // namespace softatlas::pipeline

@@ -17,6 +17,7 @@
 #include <sstream>
 
 #include "softatlas/io/organ_set.hpp"
+#include "softatlas/pipeline/bench_segment.hpp"
 #include "softatlas/pipeline/build.hpp"
 #include "softatlas/pipeline/cli.hpp"
 #include "softatlas/pipeline/label_table.hpp"
@@ -81,24 +82,16 @@ std::vector<std::array<double, 3>> spread(const Volume& v, const std::vector<siz
 }
 
 // Reference labels of several masks on one CT grid (nearest voxel through world coordinates).
+// The simulated user's protocol (deep clicks, ring, corrections) measures the region growing with
+// its tube and wall models; the default graph cut is measured by `softatlas bench segment`.
+SegmentOptions growth_options() {
+  SegmentOptions o;
+  o.method = "growth";
+  return o;
+}
+
 Volume labels_on_grid(const Volume& grid, const std::vector<std::pair<std::string, int>>& masks) {
-  Volume out;
-  out.dims = grid.dims;
-  out.ijk_to_ras = grid.ijk_to_ras;
-  out.values.assign(grid.values.size(), 0.0f);
-  for (const auto& [path, id] : masks) {
-    const Volume m = read_volume(path);
-    for (int k = 0; k < grid.dims[2]; ++k)
-      for (int j = 0; j < grid.dims[1]; ++j)
-        for (int i = 0; i < grid.dims[0]; ++i) {
-          const auto v = m.voxel(grid.world(i, j, k));
-          const long a = std::lround(v[0]), b = std::lround(v[1]), c = std::lround(v[2]);
-          if (a < 0 || b < 0 || c < 0 || a >= m.dims[0] || b >= m.dims[1] || c >= m.dims[2]) continue;
-          if (m.values[m.index(int(a), int(b), int(c))] != 0 && out.values[out.index(i, j, k)] == 0)
-            out.values[out.index(i, j, k)] = static_cast<float>(id);
-        }
-  }
-  return out;
+  return masks_on_grid(grid, masks);
 }
 
 // Voxels at least half as deep as the deepest voxel of label `id`, spread to n points.
@@ -204,7 +197,7 @@ Volume segment_like_a_user(const Volume& ct, const Volume& ref, const std::vecto
   Seeds seeds;
   for (const auto& [name, id] : organs) seeds.organs[name] = deep_points(ref, id, 10);
   seeds.background = ring_points(ref, organs, ring);
-  Volume seg = segment_seeded(ct, seeds, SegmentOptions{}, path);
+  Volume seg = segment_seeded(ct, seeds, growth_options(), path);
   for (int c = 0; c < corrections; ++c) {
     std::vector<char> leak(seg.values.size(), 0);
     for (size_t x = 0; x < leak.size(); ++x) {
@@ -225,7 +218,7 @@ Volume segment_like_a_user(const Volume& ct, const Volume& ref, const std::vecto
     const auto click = centre_of_largest(ct, leak, 50);
     if (!click) break;
     seeds.background.push_back(*click);
-    seg = segment_seeded(ct, seeds, SegmentOptions{}, path);
+    seg = segment_seeded(ct, seeds, growth_options(), path);
     if (std::getenv("SOFTATLAS_VERBOSE"))  // Dice after each click
       for (const auto& [name, id] : organs)
         std::printf("  click %d at (%.1f, %.1f, %.1f): %s %.4f\n", c + 1, (*click)[0], (*click)[1], (*click)[2], name.c_str(),
@@ -369,4 +362,35 @@ TEST(SlowWorkflow, SnakemakeBuildsTheSampleAndSkipsItNextTime) {
 }
 
 }  // namespace
+// The fair protocol, all 10 draws of `softatlas bench segment` on the abdomen slab: floors at the
+// measured level of the graph cut (docs/pipeline.md), and no runaway liver or spleen.
+TEST(SlowSeeded, FairProtocolTenDrawsOnTheSlab) {
+  const EvalCase c = load_eval_case(SOFTATLAS_SHARED_DATA, "slab");
+  double liver = 0, spleen = 0;
+  for (int k = 0; k < 10; ++k) {
+    const EvalRun r = run_draw(c, draw_seed(k));
+    liver += r.dice[0] / 10, spleen += r.dice[1] / 10;
+    EXPECT_GE(r.dice[0], 0.80) << "draw " << k;
+    EXPECT_LE(r.volume_ratio[0], 1.3) << "draw " << k;
+    EXPECT_LE(r.volume_ratio[1], 1.3) << "draw " << k;
+  }
+  std::printf("mean Dice liver %.3f, spleen %.3f\n", liver, spleen);
+  EXPECT_GE(liver, 0.85);
+  EXPECT_GE(spleen, 0.85);
+}
+
+// `--organs all` builds every label of the map (bones, muscles and the rest included).
+TEST(SlowBuild, OrgansAllBuildsEveryLabel) {
+  const std::string out = (std::filesystem::temp_directory_path() / "softatlas-slow-organs-all").string();
+  std::filesystem::remove_all(out);
+  ASSERT_EQ(cli_main({"build", abdomen("ct_from_dicom.nii.gz"), "--labels", abdomen("example_seg_dicom.nii.gz"),
+                      "--organs", "all", "-q", "-o", out}),
+            0);
+  size_t organs = 0;
+  for (const auto& e : std::filesystem::directory_iterator(out + "/organs")) organs += e.path().extension() == ".ply";
+  EXPECT_EQ(organs, 31u);  // the 31 labels of the slab's map
+  EXPECT_TRUE(std::filesystem::exists(out + "/organs/vertebrae_T12.ply"));
+  std::filesystem::remove_all(out);
+}
+
 }  // namespace softatlas::pipeline
