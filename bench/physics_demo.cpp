@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "cli_util.hpp"
+#include "softatlas/io/cli_number.hpp"
 #include "softatlas/bench/cli.hpp"
 #include "softatlas/io/mesh_io.hpp"
 #include "softatlas/sim/sim.hpp"
@@ -96,8 +97,9 @@ int physics_demo(const std::vector<std::string>& args) {
   int hold_steps = 300;
   app.add_option("--mesh", mesh_path, "surface mesh in mm");
   app.add_option("--out", out, "output folder");
-  app.add_option("--pull-mm", pull_mm, "pull of the top face along [0, 1, 1] (mm)");
-  app.add_option("--hold-steps", hold_steps, "steps (1 ms) the face is held after the 30 iterations")->check(CLI::Range(0, 1000000));
+  app.add_option("--pull-mm", pull_mm, "pull of the top face along [0, 1, 1] (mm)")->check(io::finite_in(-200, 200));
+  app.add_option("--hold-steps", hold_steps, "steps (1 ms) the face is held after the 30 iterations (at most 20 s)")
+      ->check(CLI::Range(0, 20000));
   if (int rc = parse_args(app, args, 2); rc >= 0) return rc;
   const io::TriMesh mesh = io::read_mesh(mesh_path);
   // top face (highest centroid) and the 20 lowest vertices held, as in the paper's setting

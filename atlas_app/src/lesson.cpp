@@ -126,7 +126,7 @@ LessonStep parse_step(const Ctx& c, const YAML::Node& n, size_t index) {
     s.kind = StepKind::wait;
     const YAML::Node m = n["wait"];
     c.keys(m, "wait", {"seconds"});
-    s.wait_s = c.num(c.require(m, "seconds", "wait"), "seconds", 0, 600);
+    s.wait_s = c.num(c.require(m, "seconds", "wait"), "seconds", 0, 60);  // a lesson step, not a pause: at most a minute
   } else {
     const std::pair<const char*, StepKind> lists[] = {{"highlight", StepKind::highlight}, {"hide", StepKind::hide},
                                                       {"show", StepKind::show}, {"isolate", StepKind::isolate},
