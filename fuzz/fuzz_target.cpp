@@ -3,10 +3,18 @@
 // so libFuzzer records it as a crash.
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <string>
 
 #include "entries.hpp"
 #include "softatlas/sim/error.hpp"
+
+// DICOM slices are decoded in this process, not in a child, so that libFuzzer sees GDCM's
+// coverage and crashes (pipeline/src/volume_io.cpp).
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  setenv("SOFTATLAS_DICOM_IN_PROCESS", "1", 1);
+  return 0;
+}
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {

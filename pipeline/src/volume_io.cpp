@@ -34,6 +34,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -61,8 +62,6 @@ std::string lower(std::string s) {
 bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
-
-std::string printable(const std::string& s, size_t max_len = 80);
 
 // Collects VTK error messages instead of printing them, so a broken file becomes one InputError.
 struct VtkErrors {
@@ -124,7 +123,7 @@ void read_vtk_voxels(vtkImageReader2* reader, const std::string& path, Volume* o
   if (!errors.first.empty() || code != 0 || !scalars || n == 0 ||
       static_cast<size_t>(scalars->GetNumberOfTuples()) != n) {
     const std::string& first = errors.first.empty() ? console.window->first : errors.first;
-    std::string why = first.empty() ? "no voxel data could be read" : printable(one_line(first), 160);
+    std::string why = first.empty() ? "no voxel data could be read" : io::printable_text(one_line(first), 160);
     throw InputError(path, "unreadable or truncated volume (" + why + ")");
   }
   out->dims = {dims[0], dims[1], dims[2]};
@@ -154,19 +153,6 @@ void read_vtk_voxels(vtkImageReader2* reader, const std::string& path, Volume* o
   *origin = {org[0], org[1], org[2]};
 }
 
-// Printable text only (a file's bytes may be anything): other bytes become '?', long text is cut.
-std::string printable(const std::string& s, size_t max_len) {
-  std::string out;
-  for (unsigned char c : s) {
-    if (out.size() >= max_len) {
-      out += "...";
-      break;
-    }
-    out += (c >= 32 && c < 127) ? static_cast<char>(c) : '?';
-  }
-  return out;
-}
-
 // Sane limits for a CT or label map: beyond these a header field is corrupt, not a big scan.
 constexpr double kMaxVoxels = 2.0e9;          // 2 G voxels (a 1024 x 1024 x 2000 CT)
 constexpr double kMaxDim = 100000;            // voxels along one axis
@@ -191,7 +177,7 @@ size_t stream_length(const std::string& path, size_t limit) {
   const std::string msg = zmsg && *zmsg ? zmsg : "zlib error";  // zlib owns zmsg: copy before gzclose
   gzclose(f);
   if (r < 0 || (err != Z_OK && err != Z_STREAM_END && err != Z_BUF_ERROR))
-    throw InputError(path, "corrupt compressed stream (" + printable(msg) + ")");
+    throw InputError(path, "corrupt compressed stream (" + io::printable_text(msg) + ")");
   if (err == Z_BUF_ERROR) throw InputError(path, "truncated compressed stream (gzip data ends early)");
   return total;
 }
@@ -328,7 +314,7 @@ NiftiHeader check_nifti_header(const std::string& path) {
   if (!std::isfinite(n.vox_offset) || n.vox_offset < min_offset || n.vox_offset > 1e8 ||
       n.vox_offset != std::floor(n.vox_offset))
     throw bad("vox_offset", "expected a whole number of bytes >= " + std::to_string(static_cast<int>(min_offset)) +
-                                " (and < 1e8), got " + printable(std::to_string(n.vox_offset)));
+                                " (and < 1e8), got " + io::printable_text(std::to_string(n.vox_offset)));
   for (int d = 1; d <= 3; ++d) {
     const double s = d <= n.dim[0] ? std::abs(n.pixdim[d]) : 1.0;
     if (!std::isfinite(s) || s < kMinSpacingMm || s > kMaxSpacingMm)
@@ -386,14 +372,14 @@ std::map<int, std::string> parse_label_table(const std::string& xml, const std::
     errno = 0;
     const long key = std::strtol(key_text.c_str(), &end, 10);
     if (key_text.empty() || *end != '\0' || errno == ERANGE || key < -2147483647L || key > 2147483647L)
-      throw InputError(path + ": LabelTable", "Label Key must be an integer, got '" + printable(key_text) + "'");
+      throw InputError(path + ": LabelTable", "Label Key must be an integer, got '" + io::printable_text(key_text) + "'");
     std::string name = label.child_value();
     if (name.empty())
       for (const pugi::xml_node c : label.children())
         if (c.type() == pugi::node_cdata || c.type() == pugi::node_pcdata) name += c.value();
     const auto b = name.find_first_not_of(" \t\r\n"), e = name.find_last_not_of(" \t\r\n");
     name = b == std::string::npos ? std::string() : name.substr(b, e - b + 1);
-    if (key != 0 && !name.empty()) names[static_cast<int>(key)] = printable(name, 200);
+    if (key != 0 && !name.empty()) names[static_cast<int>(key)] = io::printable_text(name, 200);
   }
   return names;
 }
@@ -521,7 +507,7 @@ TextHeader read_text_header(const std::string& path, char sep, const char* forma
     value = trim(value);
     if (key.empty()) throw InputError(path + ":" + std::to_string(line_no), "empty field name");
     if (h.kv.count(key))
-      throw InputError(path + ": " + printable(key), std::string("field given twice in the ") + format + " header");
+      throw InputError(path + ": " + io::printable_text(key), std::string("field given twice in the ") + format + " header");
     h.kv[key] = value;
     if (!nrrd && key == "elementdatafile") break;  // MetaImage: data follows
   }
@@ -541,7 +527,7 @@ std::vector<double> numbers(const std::string& path, const std::string& field, s
     char* end = nullptr;
     const double x = std::strtod(tok.c_str(), &end);
     if (end == tok.c_str() || *end != '\0' || !std::isfinite(x))
-      throw InputError(path + ": " + field, "expected finite numbers, got '" + printable(tok) + "'");
+      throw InputError(path + ": " + field, "expected finite numbers, got '" + io::printable_text(tok) + "'");
     out.push_back(x);
   }
   if (count && out.size() != count)
@@ -659,10 +645,10 @@ void decode_samples(const std::string& data, size_t n, int bytes, char kind, boo
 // patterns), which must exist.
 std::string data_file_beside(const std::string& path, const std::string& field, const std::string& name) {
   if (name.empty() || name.find_first_of("%*?\n") != std::string::npos || lower(name).rfind("list", 0) == 0)
-    throw InputError(path + ": " + field, "expected one data file name, got '" + printable(name) + "'");
+    throw InputError(path + ": " + field, "expected one data file name, got '" + io::printable_text(name) + "'");
   const fs::path p = fs::path(name).is_absolute() ? fs::path(name) : fs::path(path).parent_path() / name;
   std::error_code ec;
-  if (!fs::is_regular_file(p, ec)) throw InputError(path + ": " + field, "data file '" + printable(name) + "' not found");
+  if (!fs::is_regular_file(p, ec)) throw InputError(path + ": " + field, "data file '" + io::printable_text(name) + "' not found");
   return p.string();
 }
 
@@ -702,9 +688,9 @@ Volume read_nrrd(const std::string& path) {
   else if (type == "uint" || type == "unsigned int" || type == "uint32" || type == "uint32_t") bytes = 4, is_signed = false;
   else if (type == "float") bytes = 4, kind = 'f';
   else if (type == "double") bytes = 8, kind = 'f';
-  else throw InputError(path + ": type", "unsupported NRRD type '" + printable(type) + "'");
+  else throw InputError(path + ": type", "unsupported NRRD type '" + io::printable_text(type) + "'");
   if (encoding != "raw" && encoding != "gzip" && encoding != "gz")
-    throw InputError(path + ": encoding", "unsupported NRRD encoding '" + printable(encoding) + "' (expected raw or gzip)");
+    throw InputError(path + ": encoding", "unsupported NRRD encoding '" + io::printable_text(encoding) + "' (expected raw or gzip)");
   // Data: after the blank line that ends the header, or in the detached `data file`.
   std::string file = path;
   size_t offset = th.data_offset;
@@ -771,13 +757,13 @@ Volume read_metaimage(const std::string& path) {
   const Type* type = nullptr;
   for (const Type& t : kTypes)
     if (et == t.name) type = &t;
-  if (!type) throw InputError(path + ": ElementType", "unsupported element type '" + printable(et) + "'");
+  if (!type) throw InputError(path + ": ElementType", "unsupported element type '" + io::printable_text(et) + "'");
   auto boolean = [&](const char* key, const char* name) {
     if (!kv.count(key)) return false;
     const std::string b = lower(kv.at(key));
     if (b == "true" || b == "1") return true;
     if (b == "false" || b == "0") return false;
-    throw InputError(path + ": " + name, "expected True or False, got '" + printable(b) + "'");
+    throw InputError(path + ": " + name, "expected True or False, got '" + io::printable_text(b) + "'");
   };
   const bool compressed = boolean("compresseddata", "CompressedData");
   const bool msb = boolean("binarydatabyteordermsb", "BinaryDataByteOrderMSB") ||
@@ -864,7 +850,7 @@ void check_dicom_lengths(const fs::path& f) {
       const std::string ts = syntax.substr(0, syntax.find_last_not_of(std::string("\0 ", 2)) + 1);
       if (ts == "1.2.840.10008.1.2") explicit_vr = false;
       else if (ts == "1.2.840.10008.1.2.2" || ts == "1.2.840.10008.1.2.1.99")
-        throw InputError(where, "unsupported DICOM transfer syntax " + printable(ts) + " (big endian or deflated)");
+        throw InputError(where, "unsupported DICOM transfer syntax " + io::printable_text(ts) + " (big endian or deflated)");
     }
     if (group == 0xFFFE) {  // item, item delimiter, sequence delimiter: 4-byte length, no VR
       const uint32_t len = u32(pos + 4);
@@ -1008,9 +994,15 @@ bool read_all(int fd, void* data, size_t n) {
 // GDCM asserts (abort) on some malformed files; a file's bytes must never end the process. Each
 // slice is therefore decoded in a child process that sends back the slice or the error text;
 // a child that dies is reported as one InputError naming the file.
+// SOFTATLAS_DICOM_IN_PROCESS=1 decodes in this process (the fuzz targets set it, so that the
+// fuzzer sees the decoder's coverage and its crashes).
 bool read_dicom_slice(const fs::path& f, DicomSlice* s) {
+  static const bool in_process = [] {
+    const char* e = std::getenv("SOFTATLAS_DICOM_IN_PROCESS");
+    return e && std::string(e) == "1";
+  }();
   int fds[2];
-  if (::pipe(fds) != 0) return decode_dicom_slice(f, s);
+  if (in_process || ::pipe(fds) != 0) return decode_dicom_slice(f, s);
   std::fflush(nullptr);
   const pid_t pid = ::fork();
   if (pid < 0) {
@@ -1076,7 +1068,7 @@ bool read_dicom_slice(const fs::path& f, DicomSlice* s) {
                                                  : "exit " + std::to_string(WEXITSTATUS(wstatus));
     throw InputError(f.string(), "not a readable DICOM image (the DICOM decoder failed on it: " + how + ")");
   }
-  if (status == 1) throw InputError(f.string(), printable(msg, 200));
+  if (status == 1) throw InputError(f.string(), io::printable_text(msg, 200));
   return status == 0;
 }
 
@@ -1248,7 +1240,7 @@ Volume checked(Volume v) {
 
 Volume read_volume(const std::string& path) {
   std::error_code ec;
-  if (!fs::exists(path, ec)) throw InputError(printable(path, 300), "file not found");
+  if (!fs::exists(path, ec)) throw InputError(io::printable_text(path, 300), "file not found");
   const std::string l = lower(path);
   if (fs::is_directory(path, ec)) return checked(read_dicom_series(path));
   if (ends_with(l, ".nii") || ends_with(l, ".nii.gz")) return checked(read_nifti(path));
