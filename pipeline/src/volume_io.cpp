@@ -874,8 +874,11 @@ void check_dicom_lengths(const fs::path& f) {
     const bool ev = explicit_vr || group == 0x0002;
     if (ev) {
       const std::string vr = d.substr(pos + 4, 2);
-      if (!std::isupper(static_cast<unsigned char>(vr[0])) || !std::isupper(static_cast<unsigned char>(vr[1])))
-        throw InputError(where, "bad DICOM value representation at byte " + std::to_string(pos + 4));
+      static const std::string kVrs = "AE AS AT CS DA DS DT FL FD IS LO LT OB OD OF OL OV OW PN SH SL SQ SS ST SV TM UC UI UL UN UR US UT UV";
+      if (vr.size() != 2 || !std::isupper(static_cast<unsigned char>(vr[0])) ||
+          !std::isupper(static_cast<unsigned char>(vr[1])) || kVrs.find(vr) == std::string::npos)
+        throw InputError(where, "bad DICOM value representation '" + io::printable_text(vr) + "' at byte " +
+                                    std::to_string(pos + 4));
       if (vr == "OB" || vr == "OW" || vr == "OF" || vr == "OD" || vr == "OL" || vr == "OV" || vr == "SQ" || vr == "UC" ||
           vr == "UN" || vr == "UR" || vr == "UT" || vr == "SV" || vr == "UV") {
         if (pos + 12 > d.size()) throw InputError(where, "truncated DICOM data element at byte " + std::to_string(pos));
@@ -900,6 +903,36 @@ void check_dicom_lengths(const fs::path& f) {
       throw InputError(where, "DICOM element (" + std::to_string(group) + "," + std::to_string(elem) + ") length " +
                                   std::to_string(len) + " runs past the end of the file");
     if (group == 0x0002 && elem == 0x0010) syntax = d.substr(pos, len);
+    // The image attributes GDCM reads with a fixed VR and value count (it asserts otherwise).
+    struct Known { uint32_t group, elem; const char* vr; int count; };
+    static const Known kKnown[] = {{0x0028, 0x0002, "US", 1}, {0x0028, 0x0010, "US", 1}, {0x0028, 0x0011, "US", 1},
+                                   {0x0028, 0x0100, "US", 1}, {0x0028, 0x0101, "US", 1}, {0x0028, 0x0102, "US", 1},
+                                   {0x0028, 0x0103, "US", 1}, {0x0028, 0x0030, "DS", 2}, {0x0028, 0x1052, "DS", 1},
+                                   {0x0028, 0x1053, "DS", 1}, {0x0020, 0x0032, "DS", 3}, {0x0020, 0x0037, "DS", 6},
+                                   {0x0018, 0x0050, "DS", 1}, {0x0018, 0x0088, "DS", 1}, {0x0028, 0x0008, "IS", 1}};
+    if (depth == 0)
+      for (const Known& k : kKnown) {
+        if (k.group != group || k.elem != elem || len == 0) continue;  // empty: absent
+        const std::string value = d.substr(pos, len);
+        const std::string name = "DICOM (" + std::to_string(group) + "," + std::to_string(elem) + ")";
+        if (ev && d.compare(pos - 4, 2, k.vr) != 0)  // US, DS, IS: the 8-byte header, VR at byte 4
+          throw InputError(where, name + ": expected VR " + k.vr);
+        if (k.vr[0] == 'U' ? len != 2 * static_cast<uint32_t>(k.count)
+                           : static_cast<int>(std::count(value.begin(), value.end(), '\\')) + 1 != k.count)
+          throw InputError(where, name + ": expected " + std::to_string(k.count) + " value(s)");
+        if (k.vr[0] != 'U') {
+          std::istringstream vs(value);
+          std::string tok;
+          while (std::getline(vs, tok, '\\')) {
+            const auto b = tok.find_first_not_of(" "), e = tok.find_last_not_of(std::string(" \0", 2));
+            tok = b == std::string::npos ? std::string() : tok.substr(b, e - b + 1);
+            char* end = nullptr;
+            const double x = std::strtod(tok.c_str(), &end);
+            if (tok.empty() || *end != '\0' || !std::isfinite(x))
+              throw InputError(where, name + ": expected finite numbers, got '" + io::printable_text(value) + "'");
+          }
+        }
+      }
     pos += len;
     if (depth > 1000) throw InputError(where, "DICOM sequences nested more than 1000 deep");
   }
