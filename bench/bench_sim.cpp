@@ -13,6 +13,7 @@
 #include <numeric>
 
 #include "cli_util.hpp"
+#include "softatlas/io/cli_number.hpp"
 #include "softatlas/bench/cli.hpp"
 #include "softatlas/io/mesh_io.hpp"
 #include "softatlas/io/organ_set.hpp"
@@ -78,11 +79,11 @@ int bench_sim(const std::vector<std::string>& args) {
   app.add_option("--model", model_name, "tmsm | cmsm | nmsm | flexion");
   app.add_option("--integrator", integrator_name, "verlet | semi-implicit | implicit");
   app.add_option("--cg-iterations", cg_iterations, "CG iterations per implicit step")->check(CLI::Range(1, 100000));
-  app.add_option("--steps", steps, "timed steps per repeat")->check(CLI::Range(1, 100000000));
+  app.add_option("--steps", steps, "timed steps per repeat")->check(CLI::Range(1, 1000000));
   app.add_option("--repeat", repeat, "timed repeats (the median is reported)")->check(CLI::Range(1, 1000));
-  app.add_option("--warmup", warmup, "untimed steps first")->check(CLI::Range(0, 100000000));
+  app.add_option("--warmup", warmup, "untimed steps first")->check(CLI::Range(0, 1000000));
   app.add_option("--threads", threads, "worker threads (the core steps organs in parallel)")->check(CLI::Range(1, 64));
-  app.add_option("--dt", dt, "time step (s)");
+  app.add_option("--dt", dt, "time step (s)")->check(io::finite_in(1e-7, 0.1));
   app.add_flag("--json", json_out, "print one JSON object");
   app.add_flag("--no-gravity", no_gravity, "rest shape stays put (checks force-free rest)");
   app.add_flag("--no-guard", no_guard, "turn the stability guard off");
@@ -184,7 +185,7 @@ int sim_explain(const std::vector<std::string>& args) {
   app.add_option("--show", shown, "organs to show (default: all)")->delimiter(',');
   app.add_option("--model", model_name, "override every organ's model: tmsm | cmsm | nmsm | flexion");
   app.add_option("--integrator", integrator_name, "verlet | semi-implicit | implicit");
-  app.add_option("--dt", dt, "time step (s)");
+  app.add_option("--dt", dt, "time step (s)")->check(io::finite_in(1e-7, 0.1));
   app.add_flag("--gravity", gravity, "gravity on");
   app.add_flag("--no-guard", no_guard, "turn the stability guard off");
   if (int rc = parse_args(app, args, 1); rc >= 0) return rc;

@@ -14,6 +14,8 @@
 #include <sstream>
 
 #include "cli_util.hpp"
+#include "softatlas/io/cli_number.hpp"
+#include "softatlas/sim/error.hpp"
 #include "softatlas/bench/cli.hpp"
 #include "softatlas/io/mesh_io.hpp"
 #include "softatlas/sim/sim.hpp"
@@ -96,8 +98,9 @@ int physics_demo(const std::vector<std::string>& args) {
   int hold_steps = 300;
   app.add_option("--mesh", mesh_path, "surface mesh in mm");
   app.add_option("--out", out, "output folder");
-  app.add_option("--pull-mm", pull_mm, "pull of the top face along [0, 1, 1] (mm)");
-  app.add_option("--hold-steps", hold_steps, "steps (1 ms) the face is held after the 30 iterations")->check(CLI::Range(0, 1000000));
+  app.add_option("--pull-mm", pull_mm, "pull of the top face along [0, 1, 1] (mm)")->check(io::finite_in(-200, 200));
+  app.add_option("--hold-steps", hold_steps, "steps (1 ms) the face is held after the 30 iterations (at most 20 s)")
+      ->check(CLI::Range(0, 20000));
   if (int rc = parse_args(app, args, 2); rc >= 0) return rc;
   const io::TriMesh mesh = io::read_mesh(mesh_path);
   // top face (highest centroid) and the 20 lowest vertices held, as in the paper's setting
@@ -161,7 +164,12 @@ int physics_demo(const std::vector<std::string>& args) {
                 r.feedback_mN[1], r.feedback_mN[2], r.volume_change_pct, r.max_displacement_mm, r.ms_per_step);
     runs.push_back(std::move(r));
   }
-  fs::create_directories(out);
+  // Both files or none: a folder this run created is removed again when a write fails (full
+  // disk, read-only folder), and the error is one InputError naming the folder.
+  std::error_code ec;
+  const bool created = !fs::exists(out, ec);
+  fs::create_directories(out, ec);
+  if (ec) throw InputError(out, "cannot create the output folder: " + ec.message());
   nlohmann::json j;
   j["mesh"] = mesh_path;
   j["pull_mm"] = {0.0, pull_mm, pull_mm};
@@ -171,8 +179,13 @@ int physics_demo(const std::vector<std::string>& args) {
     j["runs"].push_back({{"model", r.model}, {"feedback_force_mN", r.feedback_mN},
                          {"volume_change_pct", r.volume_change_pct}, {"max_displacement_mm", r.max_displacement_mm},
                          {"ms_per_step", r.ms_per_step}});
-  io::write_file_atomic((fs::path(out) / "results.json").string(), j.dump(2) + "\n");
-  io::write_file_atomic((fs::path(out) / "deformation.svg").string(), svg_picture(mesh, runs, face));
+  try {
+    io::write_file_atomic((fs::path(out) / "deformation.svg").string(), svg_picture(mesh, runs, face));
+    io::write_file_atomic((fs::path(out) / "results.json").string(), j.dump(2) + "\n");
+  } catch (...) {
+    if (created) fs::remove_all(out, ec);
+    throw;
+  }
   std::printf("physics demo: %s/results.json, %s/deformation.svg\n", out.c_str(), out.c_str());
   return 0;
 }

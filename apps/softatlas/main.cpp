@@ -10,10 +10,12 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <new>
 #include <string>
 #include <vector>
 
 #include "softatlas/bench/cli.hpp"
+#include "softatlas/io/mesh_io.hpp"
 #include "softatlas/sim/error.hpp"
 #ifdef SOFTATLAS_HAVE_PIPELINE
 #include "softatlas/pipeline/cli.hpp"
@@ -221,10 +223,14 @@ int main(int argc, char** argv) {
   try {
     return dispatch(args);
   } catch (const softatlas::InputError& e) {
-    std::fprintf(stderr, "softatlas: %s\n", e.what());
+    // One line of printable text, whatever the file held (a path or value quoted from it).
+    std::fprintf(stderr, "softatlas: %s\n", softatlas::io::printable_text(e.what(), 600).c_str());
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "softatlas: error: out of memory (the input asks for more than this machine has)\n");
     return 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "softatlas: error: %s\n", e.what());
+    std::fprintf(stderr, "softatlas: error: %s\n", softatlas::io::printable_text(e.what(), 600).c_str());
     return 1;
   }
 }

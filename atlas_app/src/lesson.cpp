@@ -168,7 +168,7 @@ LessonStep parse_step(const Ctx& c, const YAML::Node& n, size_t index) {
     s.kind = StepKind::wait;
     const YAML::Node m = n["wait"];
     c.keys(m, "wait", {"seconds"});
-    s.wait_s = c.num(c.require(m, "seconds", "wait"), "seconds", 0, 600);
+    s.wait_s = c.num(c.require(m, "seconds", "wait"), "seconds", 0, 60);  // a lesson step, not a pause: at most a minute
   } else if (n["question"]) {
     s.kind = StepKind::question;
     const YAML::Node m = n["question"];

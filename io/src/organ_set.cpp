@@ -2,9 +2,14 @@
 #include "softatlas/io/organ_set.hpp"
 
 #include <yaml-cpp/yaml.h>
+#include <signal.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <climits>
 #include <cmath>
+#include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <set>
 #include <sstream>
@@ -30,7 +35,7 @@ void check_keys(const std::string& file, const YAML::Node& map, const std::set<s
     if (!allowed.count(key)) {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw InputError(at(file, kv.first), "unknown key '" + key + "' in " + what + " (expected one of: " + list + ")");
+      throw InputError(at(file, kv.first), "unknown key '" + printable_text(key) + "' in " + what + " (expected one of: " + list + ")");
     }
   }
 }
@@ -60,7 +65,7 @@ void read_material(const std::string& file, const YAML::Node& node, MaterialSpec
     m.model = get<std::string>(file, node["model"], "a model name");
     if (m.model != "tmsm" && m.model != "cmsm" && m.model != "nmsm" && m.model != "flexion" && m.model != "solid")
       throw InputError(at(file, node["model"]),
-                       "unknown model '" + m.model + "' (expected tmsm, cmsm, nmsm, flexion or solid)");
+                       "unknown model '" + printable_text(m.model) + "' (expected tmsm, cmsm, nmsm, flexion or solid)");
   }
   auto num = [&](const char* key, double& out, double lo, bool strict) {
     if (!node[key]) return;
@@ -146,14 +151,51 @@ std::string format_connections_csv(const std::vector<Connection>& connections) {
   return os.str();
 }
 
-std::vector<Connection> parse_connections_csv(const std::string& text, const std::string& path) {
+namespace {
+
+// A whole decimal integer token in int range ("12abc", "1e999", " 3", "" are not).
+bool strict_int(const std::string& t, int* out) {
+  if (t.empty() || t.size() > 11) return false;
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(t.c_str(), &end, 10);
+  if (end != t.c_str() + t.size() || errno == ERANGE || v < INT32_MIN || v > INT32_MAX || std::isspace(static_cast<unsigned char>(t[0])))
+    return false;
+  *out = static_cast<int>(v);
+  return true;
+}
+
+// A whole finite number token.
+bool strict_double(const std::string& t, double* out) {
+  if (t.empty() || std::isspace(static_cast<unsigned char>(t[0]))) return false;
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(t.c_str(), &end);
+  if (end != t.c_str() + t.size() || !std::isfinite(v)) return false;
+  *out = v;
+  return true;
+}
+
+}  // namespace
+
+std::vector<Connection> parse_connections_csv(const std::string& raw, const std::string& path) {
+  // Line endings: LF, CRLF and CR-only (old Mac editors) are all line breaks.
+  std::string text;
+  text.reserve(raw.size());
+  for (size_t i = 0; i < raw.size(); ++i) {
+    if (raw[i] == '\r') {
+      text += '\n';
+      if (i + 1 < raw.size() && raw[i + 1] == '\n') ++i;
+    } else {
+      text += raw[i];
+    }
+  }
   std::vector<Connection> out;
   std::istringstream in(text);
   std::string line;
   long line_no = 0;
   while (std::getline(in, line)) {
     ++line_no;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
     if (line_no == 1) {
       if (line.rfind("organ_a", 0) != 0)
         throw InputError(path + ":1", "expected the header 'organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness'");
@@ -161,27 +203,28 @@ std::vector<Connection> parse_connections_csv(const std::string& text, const std
     }
     if (line.empty()) continue;
     std::vector<std::string> f;
-    std::istringstream ls(line);
-    std::string cell;
-    while (std::getline(ls, cell, ',')) f.push_back(cell);
+    size_t start = 0;
+    while (true) {
+      const size_t comma = line.find(',', start);
+      f.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
     const std::string where = path + ":" + std::to_string(line_no);
     if (f.size() != 6) throw InputError(where, "expected 6 comma-separated fields, got " + std::to_string(f.size()));
     Connection c;
     c.organ_a = f[0];
     c.organ_b = f[2];
-    try {
-      size_t used = 0;
-      c.vertex_a = std::stoi(f[1], &used);
-      c.vertex_b = std::stoi(f[3], &used);
-      c.rest_length_mm = std::stod(f[4]);
-      c.stiffness = std::stod(f[5]);
-    } catch (const std::exception&) {
-      throw InputError(where, "expected integers for vertex_a/vertex_b and numbers for rest_length_mm/stiffness");
-    }
-    if (!std::isfinite(c.rest_length_mm) || c.rest_length_mm < 0)
-      throw InputError(where, "rest_length_mm must be a finite value >= 0");
-    if (!std::isfinite(c.stiffness) || c.stiffness < 0)
-      throw InputError(where, "stiffness must be a finite value >= 0");
+    static const char* kField[] = {"organ_a", "vertex_a", "organ_b", "vertex_b", "rest_length_mm", "stiffness"};
+    for (int k : {1, 3})
+      if (!strict_int(f[k], k == 1 ? &c.vertex_a : &c.vertex_b))
+        throw InputError(where, std::string(kField[k]) + ": expected a whole integer vertex index, got '" +
+                                    printable_text(f[k]) + "'");
+    for (int k : {4, 5})
+      if (!strict_double(f[k], k == 4 ? &c.rest_length_mm : &c.stiffness))
+        throw InputError(where, std::string(kField[k]) + ": expected a finite number, got '" + printable_text(f[k]) + "'");
+    if (c.rest_length_mm < 0) throw InputError(where, "rest_length_mm must be a finite value >= 0");
+    if (c.stiffness < 0) throw InputError(where, "stiffness must be a finite value >= 0");
     out.push_back(c);
   }
   if (line_no == 0) throw InputError(path, "empty file: expected a header line");
@@ -197,13 +240,26 @@ OrganSet read_organ_set(const std::string& folder) {
   try {
     root = YAML::LoadFile(file);
   } catch (const YAML::ParserException& e) {
-    throw InputError(file + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1), e.msg);
+    throw InputError(file + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1),
+                     printable_text(e.msg, 200));
   } catch (const YAML::Exception& e) {
-    throw InputError(file, e.what());
+    throw InputError(file, printable_text(e.what(), 200));
   }
   check_keys(file, root,
              {"softatlas_organ_set", "units", "space", "organs", "connections", "provenance", "quality"},
              "atlas.yaml");
+  // The format version: this reader knows version 1 (docs/organ-set.md).
+  if (!root["softatlas_organ_set"])
+    throw InputError(file, "missing 'softatlas_organ_set: 1' (the format version)");
+  {
+    const YAML::Node& vn = root["softatlas_organ_set"];
+    int version = 0;
+    if (!vn.IsScalar() || !strict_int(vn.Scalar(), &version))
+      throw InputError(at(file, vn), "softatlas_organ_set: expected the format version 1");
+    if (version != 1)
+      throw InputError(at(file, vn), "softatlas_organ_set: format version " + std::to_string(version) +
+                                         " is not supported (this softatlas reads version 1)");
+  }
   OrganSet set;
   set.folder = folder;
   if (root["units"]) {
@@ -219,7 +275,7 @@ OrganSet read_organ_set(const std::string& folder) {
     OrganEntry o;
     if (!on["name"]) throw InputError(at(file, on), "organ without 'name'");
     o.name = get<std::string>(file, on["name"], "an organ name");
-    if (set.find(o.name)) throw InputError(at(file, on["name"]), "duplicate organ '" + o.name + "'");
+    if (set.find(o.name)) throw InputError(at(file, on["name"]), "duplicate organ '" + printable_text(o.name) + "'");
     if (on["label"]) o.label = get<int>(file, on["label"], "an integer label id");
     if (on["fma"]) o.fma = get<std::string>(file, on["fma"], "an FMA id");
     o.color = default_organ_color(o.name);
@@ -231,7 +287,7 @@ OrganSet read_organ_set(const std::string& folder) {
         if (o.color[k] < 0 || o.color[k] > 1) throw InputError(at(file, c[k]), "color components must be in 0..1");
       }
     }
-    if (!on["mesh"]) throw InputError(at(file, on), "organ '" + o.name + "' has no 'mesh'");
+    if (!on["mesh"]) throw InputError(at(file, on), "organ '" + printable_text(o.name) + "' has no 'mesh'");
     o.mesh_file = get<std::string>(file, on["mesh"], "a mesh path");
     if (on["face_budget"]) o.face_budget = get<int>(file, on["face_budget"], "an integer face budget");
     if (on["material"]) read_material(file, on["material"], o.material);
@@ -260,12 +316,12 @@ OrganSet read_organ_set(const std::string& folder) {
       const std::string where = cpath + ":" + std::to_string(row);
       const OrganEntry* a = set.find(c.organ_a);
       const OrganEntry* b = set.find(c.organ_b);
-      if (!a) throw InputError(where, "organ '" + c.organ_a + "' is not in atlas.yaml");
-      if (!b) throw InputError(where, "organ '" + c.organ_b + "' is not in atlas.yaml");
+      if (!a) throw InputError(where, "organ '" + printable_text(c.organ_a) + "' is not in atlas.yaml");
+      if (!b) throw InputError(where, "organ '" + printable_text(c.organ_b) + "' is not in atlas.yaml");
       if (c.vertex_a < 0 || static_cast<size_t>(c.vertex_a) >= a->mesh.vertex_count())
-        throw InputError(where, "vertex_a " + std::to_string(c.vertex_a) + " outside organ '" + c.organ_a + "'");
+        throw InputError(where, "vertex_a " + std::to_string(c.vertex_a) + " outside organ '" + printable_text(c.organ_a) + "'");
       if (c.vertex_b < 0 || static_cast<size_t>(c.vertex_b) >= b->mesh.vertex_count())
-        throw InputError(where, "vertex_b " + std::to_string(c.vertex_b) + " outside organ '" + c.organ_b + "'");
+        throw InputError(where, "vertex_b " + std::to_string(c.vertex_b) + " outside organ '" + printable_text(c.organ_b) + "'");
     }
   }
   if (root["provenance"] && root["provenance"].IsMap())
@@ -283,7 +339,22 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
     throw InputError(folder, "output folder exists (refusing to overwrite; remove it or choose another)");
   const fs::path parent = target.parent_path();
   if (!fs::is_directory(parent, ec)) fs::create_directories(parent, ec);
-  const fs::path tmp = parent / ("." + target.filename().string() + ".partial." + std::to_string(::getpid()));
+  const std::string stem = "." + target.filename().string() + ".partial.";
+  // Folders left by writers that were killed (SIGKILL, power loss): their process is gone.
+  for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(stem, 0) != 0) continue;
+    const std::string pid_text = name.substr(stem.size());
+    char* stop = nullptr;
+    const long pid = std::strtol(pid_text.c_str(), &stop, 10);
+    if (pid_text.empty() || *stop != '\0' || pid <= 0) continue;
+    if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
+      std::error_code rm;
+      fs::remove_all(it->path(), rm);
+    }
+  }
+  ec.clear();
+  const fs::path tmp = parent / (stem + std::to_string(::getpid()));
   fs::remove_all(tmp, ec);
   try {
     fs::create_directories(tmp / "organs");
@@ -331,6 +402,9 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
     }
     if (overwrite && fs::exists(target, ec)) fs::remove_all(target, ec);
     fs::rename(tmp, target);
+  } catch (const fs::filesystem_error& e) {
+    fs::remove_all(tmp, ec);
+    throw InputError(folder, "cannot write the organ set: " + e.code().message());
   } catch (...) {
     fs::remove_all(tmp, ec);
     throw;

@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "softatlas/io/cli_number.hpp"
 #include "softatlas/pipeline/bench_segment.hpp"
 #include "softatlas/pipeline/build.hpp"
 #include "softatlas/pipeline/export_web.hpp"
@@ -94,9 +95,12 @@ struct BuildCli {
     app.add_option("--organs", organs, "organs to build, TotalSegmentator names (comma-separated)")->delimiter(',');
     app.add_option("--budget", budgets, "face budgets, NAME=FACES (comma-separated)");
     app.add_option("--config", config, "build.yaml with the same settings");
-    app.add_option("--connect-distance", connect_distance, "connection threshold in mm (default 4)");
-    app.add_option("--connect-spacing", connect_spacing, "one spring per disc of this radius, mm (default 6)");
-    app.add_option("--stiffness", stiffness, "connection spring stiffness, N/m (default 50)");
+    app.add_option("--connect-distance", connect_distance, "connection threshold in mm (default 4)")
+        ->check(io::finite_in(0, 1000));
+    app.add_option("--connect-spacing", connect_spacing, "one spring per disc of this radius, mm (default 6)")
+        ->check(io::finite_in(0, 1000));
+    app.add_option("--stiffness", stiffness, "connection spring stiffness, N/m (default 50)")
+        ->check(io::finite_in(0, 1e6));
     app.add_flag("-q,--quiet", quiet, "no progress output");
     auto* o = app.add_option("-o,--output", output, "output organ-set folder (must not exist)");
     if (need_output) o->required();

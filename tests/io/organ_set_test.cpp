@@ -112,5 +112,76 @@ TEST(OrganSet, BadManifestsNameFileLineAndColumn) {
   }
 }
 
+
+// connections.csv numbers are whole tokens (12abc and 1e999 were read as 12 and 1), CR-only line
+// endings are line breaks, and atlas.yaml's format version is checked (issue 17).
+TEST(OrganSet, ConnectionsAreStrictAndTheFormatVersionIsChecked) {
+  const std::string header = "organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness\n";
+  auto error_of = [&](const std::string& rows) -> std::string {
+    try {
+      io::parse_connections_csv(header + rows, "c.csv");
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_NE(error_of("liver,12abc,gb,2,1,1\n").find("c.csv:2: vertex_a: expected a whole integer"), std::string::npos);
+  EXPECT_NE(error_of("liver,1e999,gb,2,1,1\n").find("vertex_a"), std::string::npos);
+  EXPECT_NE(error_of("liver,1,gb,99999999999,1,1\n").find("vertex_b"), std::string::npos);
+  EXPECT_NE(error_of("liver,1,gb, 2,1,1\n").find("vertex_b"), std::string::npos);
+  EXPECT_NE(error_of("liver,1,gb,2,1e999,1\n").find("rest_length_mm: expected a finite number"), std::string::npos);
+  EXPECT_NE(error_of("liver,1,gb,2,1,nan\n").find("stiffness"), std::string::npos);
+  EXPECT_NE(error_of("liver,1,gb,2,1,5x\n").find("stiffness"), std::string::npos);
+  EXPECT_NE(error_of("liver,1,gb,2,1,\x01\xfe\n").find("'?" "?'"), std::string::npos);
+  const auto cr = io::parse_connections_csv(
+      "organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness\rliver,1,gb,2,0.5,3\rliver,4,gb,5,1,3\r", "cr.csv");
+  ASSERT_EQ(cr.size(), 2u);
+  EXPECT_EQ(cr[1].vertex_b, 5);
+  EXPECT_EQ(io::parse_connections_csv(header + "liver,1,gb,2,0.5,3\r\n", "crlf.csv").size(), 1u);
+
+  const fs::path dir = fresh("softatlas_set_version");
+  io::write_organ_set(small_set(), dir.string());
+  const std::string yaml = (dir / "atlas.yaml").string();
+  std::string text;
+  {
+    std::ifstream in(yaml);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  auto manifest_error = [&](const std::string& modified) -> std::string {
+    std::ofstream(yaml) << modified;
+    try {
+      io::read_organ_set(dir.string());
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  std::string v2 = text;
+  v2.replace(v2.find("softatlas_organ_set: 1"), 22, "softatlas_organ_set: 2");
+  EXPECT_NE(manifest_error(v2).find("format version 2 is not supported"), std::string::npos) << manifest_error(v2);
+  std::string none = text;
+  none.replace(none.find("softatlas_organ_set: 1"), 22, "");
+  EXPECT_NE(manifest_error(none).find("missing 'softatlas_organ_set: 1'"), std::string::npos) << manifest_error(none);
+  std::string deep = "softatlas_organ_set: 1\norgans: " + std::string(100000, '[') + "\n";
+  EXPECT_FALSE(manifest_error(deep).empty());
+  std::ofstream(yaml) << text;
+  EXPECT_NO_THROW(io::read_organ_set(dir.string()));
+}
+
+// A writer killed before its rename leaves .NAME.partial.PID; the next write removes the folders
+// of dead processes (and keeps those of live ones).
+TEST(OrganSet, StalePartialFoldersOfDeadWritersAreRemoved) {
+  const fs::path dir = fresh("softatlas_set_partial");
+  fs::create_directories(dir);
+  const fs::path dead = dir / ".set.partial.2147480000", live = dir / ".set.partial.1", other = dir / ".other.partial.2147480001";
+  for (const fs::path& p : {dead, live, other}) fs::create_directories(p / "organs");
+  io::write_organ_set(small_set(), (dir / "set").string());
+  EXPECT_FALSE(fs::exists(dead));
+  EXPECT_TRUE(fs::exists(live)) << "pid 1 is alive";
+  EXPECT_TRUE(fs::exists(other)) << "another set's folder";
+  EXPECT_TRUE(fs::exists(dir / "set" / "atlas.yaml"));
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace softatlas

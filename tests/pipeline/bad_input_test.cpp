@@ -1,10 +1,19 @@
 // Every bad input of the issue: one InputError naming the file or organ, and no output folder.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
+#include <thread>
 
+#include "softatlas/io/organ_set.hpp"
 #include "softatlas/pipeline/cli.hpp"
 #include "softatlas/pipeline/volume.hpp"
 #include "softatlas/sim/error.hpp"
@@ -118,6 +127,115 @@ TEST(BadInput, MalformedBudgetAndMissingSeeds) {
   expect_rejected(args, tmp("out"), "--budget pulmonary_artery");
   expect_rejected({"build", chest("ct_heart_crop.nii.gz"), "--seeds", tmp("none.yaml"), "-q", "-o", tmp("out")},
                   tmp("out"), "none.yaml");
+}
+
+
+// ---- faults (issue 17) ----
+
+// `build` killed (SIGKILL) at random moments, fixed draws: the output path is then absent or a
+// complete organ set, never partial; the hidden .NAME.partial.PID folders of the killed writers
+// are removed by the next run.
+TEST(Faults, KilledBuildLeavesNothingOrACompleteSetAndTheNextRunCleansUp) {
+  test::Scratch tmp;
+  const std::string cli = std::string(SOFTATLAS_BINARY_DIR) + "/tests/pipeline/softatlas_pipeline_cli";
+  ASSERT_TRUE(fs::exists(cli)) << cli;
+  const std::vector<std::string> args = {cli, "build", chest("ct_heart_crop.nii.gz"), "--labels",
+                                         "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), "-q", "-o", tmp("set")};
+  auto spawn = [&]() {
+    const pid_t pid = fork();
+    if (pid == 0) {
+      std::vector<char*> argv;
+      for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+      argv.push_back(nullptr);
+      const int devnull = open("/dev/null", O_WRONLY);
+      dup2(devnull, 2);
+      execv(cli.c_str(), argv.data());
+      _exit(127);
+    }
+    return pid;
+  };
+  // One complete run gives the time span to draw kill moments from.
+  const auto t0 = std::chrono::steady_clock::now();
+  int status = 0;
+  waitpid(spawn(), &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "reference build failed";
+  const double full_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_NO_THROW(io::read_organ_set(tmp("set")));
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> when(0.0, full_s);
+  int killed_mid_write = 0;
+  for (int draw = 0; draw < 6; ++draw) {
+    fs::remove_all(tmp("set"));
+    const pid_t pid = spawn();
+    std::this_thread::sleep_for(std::chrono::duration<double>(when(rng)));
+    kill(pid, SIGKILL);
+    waitpid(pid, &status, 0);
+    if (fs::exists(tmp("set"))) {
+      EXPECT_NO_THROW(io::read_organ_set(tmp("set"))) << "draw " << draw << ": partial organ set at the output path";
+    }
+    for (const auto& e : fs::directory_iterator(tmp.dir))
+      if (e.path().filename().string().rfind(".set.partial.", 0) == 0) ++killed_mid_write;
+  }
+  // A stale folder of a dead writer, whether or not a draw hit the write itself.
+  fs::create_directories(tmp.dir / ".set.partial.2147480000" / "organs");
+  fs::remove_all(tmp("set"));
+  waitpid(spawn(), &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  EXPECT_NO_THROW(io::read_organ_set(tmp("set")));
+  for (const auto& e : fs::directory_iterator(tmp.dir))
+    EXPECT_NE(e.path().filename().string().rfind(".set.partial.", 0), 0u) << "left behind: " << e.path();
+  std::printf("[ faults ] reference build %.2f s, %d partial folders seen after kills\n", full_s, killed_mid_write);
+}
+
+// An output folder that cannot be written gives one clean error and leaves nothing behind. As
+// root, permissions do not stop a write, so a folder under /proc stands in for a read-only one.
+TEST(Faults, UnwritableOutputGivesOneCleanError) {
+  test::Scratch tmp;
+  std::string parent;
+  if (geteuid() == 0) {
+    parent = "/proc/softatlas-readonly";
+  } else {
+    fs::create_directories(tmp.dir / "ro");
+    fs::permissions(tmp.dir / "ro", fs::perms::owner_read | fs::perms::owner_exec);
+    parent = tmp("ro");
+  }
+  const std::string out = parent + "/set";
+  for (const std::vector<std::string>& args :
+       {std::vector<std::string>{"build", chest("ct_heart_crop.nii.gz"), "--labels",
+                                 "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), "-q", "-o", out},
+        std::vector<std::string>{"export", std::string(SOFTATLAS_SOURCE_DIR) + "/data/atlas", "-o", parent + "/atlas.glb"}}) {
+    try {
+      cli_main(args);
+      ADD_FAILURE() << args[0] << ": wrote into an unwritable folder";
+    } catch (const InputError& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find(parent), std::string::npos) << msg;
+      EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << args[0] << ": not a clean InputError: " << e.what();
+    }
+    EXPECT_FALSE(fs::exists(out));
+    EXPECT_FALSE(fs::exists(parent + "/atlas.glb"));
+  }
+  if (geteuid() != 0) fs::permissions(tmp.dir / "ro", fs::perms::owner_all);
+}
+
+// Numbers on the command line: the whole token, finite, in range.
+TEST(Faults, CommandLineNumbersAreStrict) {
+  test::Scratch tmp;
+  for (const char* bad : {"nan", "-1", "inf", "1e999", "12abc", "1e308"}) {
+    const std::vector<std::string> args = {"build", chest("ct_heart_crop.nii.gz"), "--labels",
+                                           "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"),
+                                           "--stiffness", bad, "-q", "-o", tmp("out")};
+    int rc = 0;
+    try {
+      rc = cli_main(args);
+    } catch (const InputError&) {
+      rc = 1;
+    }
+    EXPECT_NE(rc, 0) << "--stiffness " << bad << " accepted";
+    EXPECT_FALSE(fs::exists(tmp("out"))) << "--stiffness " << bad;
+  }
 }
 
 }  // namespace

@@ -221,5 +221,179 @@ TEST(LabelTable, MatchesTheSharedTsv) {
   EXPECT_EQ(default_face_budget("kidney_left"), 800);
 }
 
+
+// ---- mutated headers (issue 17): each refused with one line naming the file and the field ----
+
+std::string gunzip(const std::string& path) {
+  gzFile f = gzopen(path.c_str(), "rb");
+  std::string out;
+  char buf[65536];
+  int r;
+  while ((r = gzread(f, buf, sizeof(buf))) > 0) out.append(buf, static_cast<size_t>(r));
+  gzclose(f);
+  return out;
+}
+
+template <typename T>
+std::string patched(std::string bytes, size_t offset, T value) {
+  std::memcpy(bytes.data() + offset, &value, sizeof(T));
+  return bytes;
+}
+
+// Reads `bytes` written to `name`; expects one InputError line naming the file and `field`.
+void expect_refused(const test::Scratch& tmp, const std::string& name, const std::string& bytes,
+                    const std::string& field) {
+  const std::string path = tmp(name);
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    out << bytes;
+  }
+  try {
+    read_volume(path);
+    ADD_FAILURE() << name << ": accepted, expected an error naming " << field;
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find(path), std::string::npos) << msg;
+    EXPECT_NE(msg.find(field), std::string::npos) << msg;
+    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+    for (unsigned char c : msg) ASSERT_TRUE(c >= 32 && c < 127) << "non-printable byte in: " << msg;
+  }
+}
+
+TEST(VolumeIo, NiftiHeaderFieldsAreCheckedBeforeVtkReadsThem) {
+  test::Scratch tmp;
+  const std::string nii = gunzip(chest("pulmonary_artery.nii.gz"));
+  ASSERT_GT(nii.size(), 352u);
+  const float nan = std::nanf(""), inf = INFINITY;
+  struct Case { const char* name; std::string bytes; const char* field; };
+  const Case cases[] = {
+      {"dim0_zero.nii", patched<int16_t>(nii, 40, 0), "dim[0]"},
+      {"dim0_huge.nii", patched<int16_t>(nii, 40, 300), "dim[0]"},
+      {"dim1_zero.nii", patched<int16_t>(nii, 42, 0), "dim[1]"},
+      {"dim2_negative.nii", patched<int16_t>(nii, 44, -7), "dim[2]"},
+      {"dim3_huge.nii", patched<int16_t>(nii, 46, 32767), "truncated"},
+      {"dim4_many.nii", patched<int16_t>(patched<int16_t>(nii, 40, 4), 48, 9), "dim[4]"},
+      {"datatype.nii", patched<int16_t>(nii, 70, 999), "datatype"},
+      {"rgb.nii", patched<int16_t>(nii, 70, 128), "datatype"},
+      {"bitpix.nii", patched<int16_t>(nii, 72, 3), "bitpix"},
+      {"vox_offset_zero.nii", patched<float>(nii, 108, 0.0f), "vox_offset"},
+      {"vox_offset_huge.nii", patched<float>(nii, 108, 1e30f), "vox_offset"},
+      {"vox_offset_nan.nii", patched<float>(nii, 108, nan), "vox_offset"},
+      {"vox_offset_frac.nii", patched<float>(nii, 108, 352.5f), "vox_offset"},
+      {"pixdim_zero.nii", patched<float>(nii, 80, 0.0f), "pixdim[1]"},
+      {"pixdim_1e30.nii", patched<float>(nii, 88, 1e30f), "pixdim[3]"},
+      {"pixdim_nan.nii", patched<float>(nii, 84, nan), "pixdim[2]"},
+      {"scl_inter_inf.nii", patched<float>(nii, 116, inf), "scl_inter"},
+      {"scl_slope_nan.nii", patched<float>(nii, 112, nan), "scl_slope"},
+      {"srow_inf.nii", patched<int16_t>(patched<float>(nii, 280, inf), 254, 1), "srow_x"},
+      {"srow_far.nii", patched<int16_t>(patched<float>(nii, 324, -2147483649.0f), 254, 1), "srow_z"},
+      {"quatern.nii", patched<int16_t>(patched<float>(nii, 256, 3.0f), 252, 1), "quatern"},
+      {"qoffset_nan.nii", patched<int16_t>(patched<float>(nii, 276, nan), 252, 1), "qoffset"},
+      {"sizeof_hdr.nii", patched<int32_t>(nii, 0, 1000), "sizeof_hdr"},
+      {"magic.nii", patched<char>(nii, 345, 'x'), "magic"},
+      {"sform_code.nii", patched<int16_t>(nii, 254, -3), "sform_code"},
+      {"truncated.nii", nii.substr(0, nii.size() - 1), "truncated"},
+      {"header_only.nii", nii.substr(0, 200), "header"},
+  };
+  for (const Case& c : cases) expect_refused(tmp, c.name, c.bytes, c.field);
+  // The same through gzip: a stream cut short, and a corrupt stream.
+  const std::string gz = slurp_gz_raw(chest("pulmonary_artery.nii.gz"));
+  expect_refused(tmp, "cut.nii.gz", gz.substr(0, gz.size() - 40), "truncated");
+  std::string flipped = gz;
+  flipped[gz.size() / 2] = static_cast<char>(flipped[gz.size() / 2] ^ 0x5a);
+  expect_refused(tmp, "flipped.nii.gz", flipped, "compressed");
+}
+
+// The Caret/CIFTI label table is read by an XML parser: long, deep or broken text is an error or
+// ignored, never a stack overflow (std::regex recursed once per character).
+TEST(VolumeIo, LabelTableExtensionIsReadByAnXmlParser) {
+  test::Scratch tmp;
+  Volume v = read_volume(chest("pulmonary_artery.nii.gz"));
+  write_label_nifti(v, tmp("plain.nii"));
+  std::string nii;
+  {
+    std::ifstream in(tmp("plain.nii"), std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    nii = ss.str();
+  }
+  auto with_extension = [&](std::string xml) {
+    while ((xml.size() + 8) % 16) xml += '\0';
+    std::string out = nii.substr(0, 348);
+    out += std::string("\1\0\0\0", 4);
+    const int32_t esize = static_cast<int32_t>(xml.size() + 8), ecode = 30;
+    out.append(reinterpret_cast<const char*>(&esize), 4);
+    out.append(reinterpret_cast<const char*>(&ecode), 4);
+    out += xml;
+    const float vox = static_cast<float>(out.size());
+    std::memcpy(out.data() + 108, &vox, 4);
+    return out + nii.substr(352);
+  };
+  // A valid table: names and keys as written, CDATA or text.
+  {
+    std::ofstream(tmp("named.nii"), std::ios::binary)
+        << with_extension("<CIFTI><LabelTable><Label Key=\"5\" Red=\"1\"><![CDATA[liver]]></Label>"
+                          "<Label Key=\"52\">aorta </Label><Label Key=\"0\">unknown</Label></LabelTable></CIFTI>");
+    const Volume named = read_volume(tmp("named.nii"));
+    ASSERT_EQ(named.label_names.size(), 2u);
+    EXPECT_EQ(named.label_names.at(5), "liver");
+    EXPECT_EQ(named.label_names.at(52), "aorta");
+  }
+  // 200,000 characters of an unclosed CDATA name, and 100,000 nested elements.
+  std::string long_name = "<LabelTable><Label Key=\"1\"><![CDATA[" + std::string(200000, 'x');
+  std::string deep = "<LabelTable>";
+  for (int i = 0; i < 100000; ++i) deep += "<a>";
+  for (const std::string& xml : {long_name, deep, std::string("<LabelTable><Label Key=\"12abc\">x</Label></LabelTable>"),
+                                 std::string("<LabelTable><Label Key=\"99999999999\">x</Label></LabelTable>")})
+    expect_refused(tmp, "bad_table.nii", with_extension(xml), "LabelTable");
+  // An extension whose size runs past vox_offset.
+  std::string bad_size = with_extension("<LabelTable></LabelTable>");
+  const int32_t huge = 1 << 30;
+  std::memcpy(bad_size.data() + 352, &huge, 4);
+  expect_refused(tmp, "bad_ext.nii", bad_size, "extension");
+}
+
+TEST(VolumeIo, NrrdAndMetaImageHeadersAreStrict) {
+  test::Scratch tmp;
+  const std::string body(6 * 5 * 4 * 2, '\1');
+  auto nrrd = [&](const std::string& fields) {
+    return "NRRD0004\ntype: short\ndimension: 3\nspace: left-posterior-superior\nsizes: 6 5 4\n"
+           "endian: little\nencoding: raw\n" + fields + "\n" + body;
+  };
+  expect_refused(tmp, "nan_dir.nrrd", nrrd("space directions: (nan,0,0) (0,1,0) (0,0,1)\n"), "space directions");
+  expect_refused(tmp, "inf_origin.nrrd", nrrd("space origin: (0,inf,0)\n"), "space origin");
+  expect_refused(tmp, "far_origin.nrrd", nrrd("space origin: (0,0,-2147483649)\n"), "10 m");
+  expect_refused(tmp, "huge_spacing.nrrd", nrrd("space directions: (1,0,0) (0,1,0) (0,0,1e30)\n"), "spacing");
+  expect_refused(tmp, "short.nrrd", nrrd("").substr(0, nrrd("").size() - 3), "truncated");
+  std::string huge_sizes = nrrd("");
+  huge_sizes.replace(huge_sizes.find("sizes: 6 5 4"), 12, "sizes: 99999 99999 99999");
+  expect_refused(tmp, "huge.nrrd", huge_sizes, "sizes");
+  std::string text_sizes = nrrd("");
+  text_sizes.replace(text_sizes.find("sizes: 6 5 4"), 12, "sizes: 6 5x 4");
+  expect_refused(tmp, "text.nrrd", text_sizes, "sizes");
+  expect_refused(tmp, "no_blank.nrrd", std::string("NRRD0004\ntype: short\n") + std::string(70000, 'a'), "header");
+  auto mha = [&](const std::string& fields) {
+    return "ObjectType = Image\nNDims = 3\nBinaryData = True\nCompressedData = False\nDimSize = 6 5 4\n"
+           "ElementType = MET_SHORT\n" + fields + "ElementDataFile = LOCAL\n" + body;
+  };
+  expect_refused(tmp, "cut.mha", mha("").substr(0, mha("").size() - 1), "truncated");
+  expect_refused(tmp, "nan_spacing.mha", mha("ElementSpacing = 1 nan 1\n"), "ElementSpacing");
+  expect_refused(tmp, "zero_spacing.mha", mha("ElementSpacing = 1 0 1\n"), "spacing");
+  expect_refused(tmp, "inf_offset.mha", mha("Offset = 0 0 inf\n"), "Offset");
+  expect_refused(tmp, "ndims.mha", mha("").replace(mha("").find("NDims = 3"), 9, "NDims = 0"), "NDims");
+  expect_refused(tmp, "type.mha", mha("").replace(mha("").find("MET_SHORT"), 9, "MET_XYZZY"), "ElementType");
+  expect_refused(tmp, "list.mha", mha("").replace(mha("").find("LOCAL"), 5, "LIST"), "ElementDataFile");
+  expect_refused(tmp, "channels.mha", mha("ElementNumberOfChannels = 3\n"), "ElementNumberOfChannels");
+  // A valid compressed MetaImage still reads, with LPS geometry.
+  const std::string ok = mha("ElementSpacing = 0.5 0.5 2\nOffset = 10 20 30\n");
+  std::ofstream(tmp("ok.mha"), std::ios::binary) << ok;
+  const Volume v = read_volume(tmp("ok.mha"));
+  EXPECT_EQ(v.dims, (std::array<int, 3>{6, 5, 4}));
+  EXPECT_DOUBLE_EQ(v.ijk_to_ras[0], -0.5);
+  EXPECT_DOUBLE_EQ(v.ijk_to_ras[3], -10.0);
+  EXPECT_DOUBLE_EQ(v.ijk_to_ras[11], 30.0);
+  EXPECT_FLOAT_EQ(v.values[0], 257.0f);
+}
+
 }  // namespace
 }  // namespace softatlas::pipeline

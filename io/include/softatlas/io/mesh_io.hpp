@@ -1,4 +1,5 @@
-// Triangle-mesh files in and out (assimp): OBJ, PLY, STL, OFF, glTF/GLB.
+// Triangle-mesh files in and out: OBJ and glTF/GLB through assimp (OBJ pre-checked line by
+// line), PLY, STL and OFF by our own readers that check counts against the file size first.
 #pragma once
 
 #include <array>
@@ -48,6 +49,16 @@ void validate_mesh(const TriMesh& mesh, const std::string& where);
 // Writes binary little-endian PLY with double vertex coordinates (float32 would round CT-world
 // millimetres far from the origin), atomically: temp file + rename.
 void write_ply(const TriMesh& mesh, const std::string& path);
+
+// Sane limits of a mesh read from a file (organ sets are in mm): a coordinate beyond 10 m or
+// more elements than this is a corrupt file, refused before any geometry code sees it (a single
+// far-off vertex makes isotropic remeshing run for minutes).
+constexpr double kMaxCoordinate = 1e4;
+constexpr long long kMaxMeshElements = 50000000;
+
+// `s` with every byte outside printable ASCII replaced by '?', cut to `max_len` characters
+// ("..." appended): for quoting a file's text in an error message.
+std::string printable_text(const std::string& s, size_t max_len = 80);
 
 // Writes `text` to `path` atomically (temporary file in the same folder, then rename).
 void write_file_atomic(const std::string& path, const std::string& text);
