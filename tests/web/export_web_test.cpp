@@ -2,9 +2,11 @@
 // carrying the native SceneDesc, lessons.json, and bad input (not an export folder, no built page).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <unistd.h>
+#include <vector>
 #include <nlohmann/json.hpp>
 
 #include "softatlas/io/organ_set.hpp"
@@ -61,9 +63,17 @@ TEST(ExportWeb, WritesThePageTheAtlasAndTheNativeScene) {
   ASSERT_TRUE(softatlas::sim::parse_integrator(scene["settings"]["integrator"].get<std::string>(), integrator));
   EXPECT_EQ(integrator, desc.integrator);
   const json lessons = read_json(out / "lessons.json");
-  ASSERT_EQ(lessons.size(), 3u);  // data/lessons: kidney_anchor, liver_mobility, organ_quiz
-  EXPECT_EQ(lessons[1]["file"], "liver_mobility.yaml");
-  EXPECT_EQ(lessons[1]["steps"][4]["pull"]["radius_mm"].get<double>(), 12.0);
+  // Every lesson of data/lessons is on data/atlas: each must be exported, in file-name order.
+  std::vector<std::string> shipped;
+  for (const auto& e : fs::directory_iterator(std::string(SOFTATLAS_SOURCE_DIR) + "/data/lessons"))
+    if (e.path().extension() == ".yaml") shipped.push_back(e.path().filename().string());
+  std::sort(shipped.begin(), shipped.end());
+  ASSERT_EQ(lessons.size(), shipped.size());
+  for (size_t i = 0; i < shipped.size(); ++i) EXPECT_EQ(lessons[i]["file"], shipped[i]);
+  const auto mobility = std::find(shipped.begin(), shipped.end(), "liver_mobility.yaml");
+  ASSERT_NE(mobility, shipped.end());
+  const json& liver = lessons[static_cast<size_t>(mobility - shipped.begin())];
+  EXPECT_EQ(liver["steps"][4]["pull"]["radius_mm"].get<double>(), 12.0);  // liver_mobility.yaml line 23
   // A second export replaces the first.
   pipeline::export_web(kSet, out.string(), kDist);
   EXPECT_TRUE(fs::exists(out / "scene.json"));
