@@ -11,6 +11,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <new>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,8 @@
 #endif
 
 namespace {
+
+constexpr int kMaxErrorLines = 100;  // error lines printed for one bad file
 
 constexpr const char* kUsage = R"(usage: softatlas <command> [options]
 
@@ -223,8 +226,17 @@ int main(int argc, char** argv) {
   try {
     return dispatch(args);
   } catch (const softatlas::InputError& e) {
-    // One line of printable text, whatever the file held (a path or value quoted from it).
-    std::fprintf(stderr, "softatlas: %s\n", softatlas::io::printable_text(e.what(), 600).c_str());
+    // One line of printable text per error, whatever the file held (a path or value quoted from
+    // it). Readers stop at their first error; lessons and device scripts report every error of
+    // the file, one FILE:LINE:COLUMN line each (docs/lessons.md), so each line is kept a line.
+    std::istringstream lines(e.what());
+    int shown = 0, total = 0;
+    for (std::string line; std::getline(lines, line);)
+      if (++total <= kMaxErrorLines) {
+        std::fprintf(stderr, "softatlas: %s\n", softatlas::io::printable_text(line, 600).c_str());
+        ++shown;
+      }
+    if (total > shown) std::fprintf(stderr, "softatlas: ... and %d more errors\n", total - shown);
     return 1;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "softatlas: error: out of memory (the input asks for more than this machine has)\n");
