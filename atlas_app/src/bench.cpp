@@ -109,7 +109,7 @@ std::string bench_haptic(const HapticBenchOptions& o) {
       sim::step(scene.model, scene.state, scene.work);
       busy += seconds_since(s0);
       ++n;
-      loop.publish(coupling.local_model(scene.model, scene.state));
+      loop.publish(coupling.local_model(scene.model, scene.state, scene.work));
       if (n % 16 == 0) {  // hand positions to the renderer now and then, never waiting for it
         for (size_t k = 0; k < local.size(); ++k) scene.positions_mm(static_cast<int>(k), local[k]);
         std::unique_lock<std::mutex> lock(snapshot_mutex, std::try_to_lock);

@@ -77,7 +77,7 @@ struct PhysicsThread {
       sim::step(scene->model, scene->state, scene->work);
       const double us = std::chrono::duration<double>(Clock::now() - s0).count() * 1e6;
       avg = avg == 0 ? us : 0.98 * avg + 0.02 * us;
-      loop->publish(coupling.local_model(scene->model, scene->state));
+      loop->publish(coupling.local_model(scene->model, scene->state, scene->work));
       if (scene->state.step_count % 8 == 0) {
         for (size_t k = 0; k < local.size(); ++k) scene->positions_mm(static_cast<int>(k), local[k]);
         const double disp = attached ? scene->mean_displacement_mm(verts) : 0.0;

@@ -249,16 +249,20 @@ void CouplingPhysics::apply(const sim::Model& m, sim::State& s, const ToolComman
   }
 }
 
-LocalModel CouplingPhysics::local_model(const sim::Model& m, const sim::State& s) {
+LocalModel CouplingPhysics::local_model(const sim::Model& m, const sim::State& s, const sim::Work& w) {
   LocalModel out;
   out.serial = ++serial_;
   out.physics_time_s = s.time_s;
   out.contact_id = contact_id_;
   if (attached_) {
     // R(p) = R0 + B v0 - (K + B / dt) (p - p0): this step's damping force -B v0 (held vertices
-    // moved at v0 = (p0 - p0_prev) / dt) is replaced by the next step's, -B (p - p0) / dt.
+    // moved at v0 = (p0 - p0_prev) / dt) is replaced by the next step's, -B (p - p0) / dt. A
+    // solid's step stiffness K_s (inertia M / h^2, elasticity, Rayleigh) gets no such term: its
+    // inertial share would predict K_s v0 dt, and when the physics runs slower than real time
+    // the proxy moves over more wall time than dt, the prediction overshoots, and the loop rings
+    // at the physics rate (bench haptic on a solid atlas at 0.25x: 8 N swings without it 0.01 N).
     double B[9];
-    step_response(m, s, held_, scratch_, out.K_N_m, B);
+    step_response(m, s, w, held_, scratch_, out.K_N_m, B);
     const Vec3d R0 = sim::tool_reaction(s);
     Vec3d v0;
     for (int k = 0; k < 3; ++k) v0[k] = have_prev_ ? (proxy_[k] - prev_proxy_[k]) / m.dt_s : 0.0;
@@ -279,7 +283,7 @@ LocalModel CouplingPhysics::local_model(const sim::Model& m, const sim::State& s
     Vec3d point, normal;
     if (patch_near(m, s, tip_, point, normal)) {
       double B[9];
-      step_response(m, s, patch_scratch_, scratch_, out.K_N_m, B);
+      step_response(m, s, w, patch_scratch_, scratch_, out.K_N_m, B);
       out.surface = true;
       out.surface_m = {point[0] - home_[0], point[1] - home_[1], point[2] - home_[2]};
       out.normal = normal;
@@ -313,13 +317,15 @@ void CouplingPhysics::held_response(const sim::Model& m, const sim::State& s, co
   for (int32_t v : verts) held[static_cast<size_t>(v)] = 0;
 }
 
-void CouplingPhysics::step_response(const sim::Model& m, const sim::State& s, const std::vector<int32_t>& verts,
-                                    std::vector<uint8_t>& held, double K_step[9], double B[9]) {
+void CouplingPhysics::step_response(const sim::Model& m, const sim::State& s, const sim::Work& w,
+                                    const std::vector<int32_t>& verts, std::vector<uint8_t>& held, double K_step[9],
+                                    double B[9]) {
   // The next step moves the held vertices from p0 to p in dt: besides the springs (K) their
   // dampers answer with B (p - p0) / dt, so one step's reaction is linear in p with K + B / dt.
   double K[9];
   held_response(m, s, verts, held, K, B);
-  for (int i = 0; i < 9; ++i) K_step[i] = K[i] + B[i] / m.dt_s;
+  const double Ks = m.solids.empty() ? 0.0 : sim::solid_hold_stiffness(m, w, verts);  // isotropic
+  for (int i = 0; i < 9; ++i) K_step[i] = K[i] + B[i] / m.dt_s + (i % 4 == 0 ? Ks : 0.0);
   project_psd(K_step);
 }
 

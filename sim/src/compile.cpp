@@ -209,8 +209,8 @@ bool parse_integrator(const std::string& text, Integrator& out) {
 
 Model compile(const SceneDesc& scene) {
   // ---- settings ----
-  require(std::isfinite(scene.dt_s) && scene.dt_s > 0 && scene.dt_s <= 1.0, "scene: dt_s",
-          "expected a time step in (0, 1] s, got " + num(scene.dt_s));
+  require(std::isfinite(scene.dt_s) && scene.dt_s >= 0 && scene.dt_s <= 1.0, "scene: dt_s",
+          "expected a time step in (0, 1] s (0: the models' own), got " + num(scene.dt_s));
   require(scene.cg_iterations >= 1 && scene.cg_iterations <= 100000, "scene: cg_iterations",
           "expected 1..100000, got " + std::to_string(scene.cg_iterations));
   require(std::isfinite(scene.cg_tolerance) && scene.cg_tolerance >= 0, "scene: cg_tolerance",
@@ -249,7 +249,7 @@ Model compile(const SceneDesc& scene) {
 
   Model m;
   m.integrator = scene.integrator;
-  m.dt_s = scene.dt_s;
+  m.dt_s = scene.dt_s > 0 ? scene.dt_s : recommended_dt_s(scene);  // timestep.cpp
   m.gravity = scene.gravity && (scene.gravity_m_s2[0] != 0 || scene.gravity_m_s2[1] != 0 ||
                                 scene.gravity_m_s2[2] != 0);
   m.gravity_m_s2 = scene.gravity_m_s2;

@@ -24,13 +24,9 @@
 #include "softatlas/sim/error.hpp"
 #include "softatlas/sim/sim.hpp"
 #include "softatlas/sim/solid.hpp"
+#include "solid_factor.hpp"
 
 namespace softatlas::sim {
-
-struct SolidFactor {
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
-  Eigen::VectorXd base_rhs;  // constant part of the right-hand side: anchors (#nnode*3, col-major)
-};
 
 namespace {
 

@@ -18,7 +18,7 @@ namespace softatlas::app {
 struct PhysicsSettings {
   std::string model;                 // tmsm | cmsm | nmsm | flexion, "" = per organ
   sim::Integrator integrator = sim::Integrator::semi_implicit;
-  double dt_s = 1e-3;
+  double dt_s = 0.0;                 // 0: the models' own step (sim::recommended_dt_s)
   bool gravity = false;
   double young_modulus_pa = -1.0;
   double elastica_b = -1.0;

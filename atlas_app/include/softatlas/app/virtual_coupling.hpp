@@ -134,18 +134,21 @@ class CouplingPhysics {
   // Before sim::step: the proxy of the last tick becomes the attachment's target; a probe contact
   // that begins attaches the patch under the contact point, one that ends releases it.
   void apply(const sim::Model& model, sim::State& state, const ToolCommand& cmd);
-  // After sim::step: the model to publish.
-  LocalModel local_model(const sim::Model& model, const sim::State& state);
+  // After sim::step: the model to publish (`work`: the step's, for the solid organs' factor).
+  LocalModel local_model(const sim::Model& model, const sim::State& state, const sim::Work& work);
 
   // Stiffness K (N/m) and damping B (N s/m), row-major 3x3, of moving `verts` together while
   // the rest of the mesh stays: the Hooke linearisation of every edge and connection spring
   // with one end held, k u u^T + k max(0, 1 - l0 / l) (I - u u^T), and its damper d u u^T.
   static void held_response(const sim::Model& model, const sim::State& state, const std::vector<int32_t>& verts,
                             std::vector<uint8_t>& held_scratch, double K[9], double B[9]);
-  // One physics step's answer to moving the held vertices: K + B / dt (projected onto the PSD
-  // cone), with B.
-  static void step_response(const sim::Model& model, const sim::State& state, const std::vector<int32_t>& verts,
-                            std::vector<uint8_t>& held_scratch, double K_step[9], double B[9]);
+  // One physics step's answer to moving the held vertices: K + B / dt of the surface models'
+  // springs plus, on solid organs, the implicit step's own stiffness (sim::solid_hold_stiffness:
+  // inertia, elasticity and Rayleigh damping of the lattice), projected onto the PSD cone; B of
+  // the springs on its own.
+  static void step_response(const sim::Model& model, const sim::State& state, const sim::Work& work,
+                            const std::vector<int32_t>& verts, std::vector<uint8_t>& held_scratch,
+                            double K_step[9], double B[9]);
   const std::vector<int32_t>& held() const { return held_; }
 
  private:

@@ -104,7 +104,7 @@ struct SceneDesc {
   std::vector<OrganDesc> organs;
   std::vector<ConnectionDesc> connections;
   Integrator integrator = Integrator::semi_implicit;
-  double dt_s = 1e-3;
+  double dt_s = 1e-3;               // 0: the step the scene's models need (recommended_dt_s)
   bool gravity = false;
   std::array<double, 3> gravity_m_s2{0.0, 0.0, -9.81};
   int cg_iterations = 25;           // implicit Euler: maximum CG iterations

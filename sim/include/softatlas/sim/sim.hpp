@@ -24,6 +24,13 @@ namespace softatlas::sim {
 // indices, non-finite coordinates, negative stiffness/mass/thickness, bad p, bad dt.
 Model compile(const SceneDesc& scene);
 
+// The time step a scene's models need when SceneDesc::dt_s is 0 (timestep.cpp): the solid
+// model's implicit step (kSolidStep_s) when every organ that moves is solid, else the surface
+// models' 1 ms (their explicit integrators and the guard's sub-steps are tuned for it).
+constexpr double kSolidStep_s = 8e-3;
+constexpr double kSurfaceStep_s = 1e-3;
+double recommended_dt_s(const SceneDesc& scene);
+
 // The compiled plan as text: what each step computes, what was left out and why.
 std::string explain(const Model& model);
 
@@ -69,6 +76,14 @@ void release(State& state);
 // The force the organ exerts on the tool (N): minus the sum of internal forces... see
 // docs/physics.md; for force pulling at equilibrium it is minus the applied force.
 std::array<double, 3> tool_reaction(const State& state);
+
+// One implicit step's stiffness (N/m) of holding `verts` (global) on solid organs: how much the
+// tool's reaction changes when every held vertex's target moves by the same offset, from the
+// solid step's prefactored matrix (inertia M/h^2, elasticity, Rayleigh damping): the sum over the
+// solid organs held of 1^T (C A^-1 C^T)^-1 1, isotropic (solid_hold.cpp). 0 when none of `verts`
+// is on a solid organ. For the haptic coupling's local model; allocates unless `verts` is the
+// hold the last step used.
+double solid_hold_stiffness(const Model& model, const Work& work, const std::vector<int32_t>& verts);
 
 // Wakes an organ and every organ connected to it.
 void wake(const Model& model, State& state, int32_t organ);
