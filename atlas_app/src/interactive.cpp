@@ -113,6 +113,10 @@ struct Keys {
   }
 };
 
+// The models the physics panel offers (material.model names, docs/organ-set.md).
+const char* const kPanelModels[] = {"solid", "nmsm", "tmsm", "cmsm", "flexion"};
+constexpr int kPanelModelCount = 5;
+
 const char* kHelp =
     "Mouse\n"
     "  left drag on an organ   grasp and pull it (force arrow at the grasp point)\n"
@@ -173,7 +177,9 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
   // The panel starts from the lesson's model, else the first simulated organ's material.
   const std::string start_model = !live.model.empty() ? live.model
                                   : set.find(scene->name(0)) ? set.find(scene->name(0))->material.model : "nmsm";
-  int model_index = start_model == "tmsm" ? 0 : start_model == "cmsm" ? 1 : start_model == "nmsm" ? 2 : 3;
+  int model_index = 0;
+  for (int i = 0; i < kPanelModelCount; ++i)
+    if (start_model == kPanelModels[i]) model_index = i;
   float young = static_cast<float>(live.young_modulus_pa > 0 ? live.young_modulus_pa : 4000.0);
   float elastica_b = static_cast<float>(live.elastica_b >= 0 ? live.elastica_b : 0.1);
   std::vector<std::vector<float>> draw(scene->view_organs().size());
@@ -446,8 +452,7 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         if (ImGui::Button("show all")) for (auto& s : viewer->styles) s.visible = true;
       }
       if (ImGui::CollapsingHeader("Physics", ImGuiTreeNodeFlags_DefaultOpen)) {
-        const char* models[] = {"tmsm", "cmsm", "nmsm", "flexion"};
-        ImGui::Combo("model", &model_index, models, 4);
+        ImGui::Combo("model", &model_index, kPanelModels, kPanelModelCount);
         ImGui::SliderFloat("E (Pa)", &young, 500.0f, 20000.0f, "%.0f", ImGuiSliderFlags_Logarithmic);
         ImGui::SliderFloat("elastica b", &elastica_b, 0.0f, 1.0f);
         bool paused = phys->paused.load();
@@ -533,13 +538,12 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
     if (rebuild) {
       // Live parameters: stop the physics thread, recompile the scene (or reset it), start
       // again; the viewer is rebuilt on the new scene, keeping the camera and styles.
-      const char* models[] = {"tmsm", "cmsm", "nmsm", "flexion"};
       phys->stop.store(true);
       phys->thread.join();
       dragging = false;
       mouse.set({0, 0, 0}, false);
       if (rebuild == 1) {
-        live.model = models[model_index];
+        live.model = kPanelModels[model_index];
         live.young_modulus_pa = young;
         live.elastica_b = elastica_b;
       }

@@ -94,7 +94,7 @@ TEST(OrganSet, BadManifestsNameFileLineAndColumn) {
   };
   expect_error(text + "colour: red\n", "unknown key 'colour'");
   std::string t2 = text;
-  t2.replace(t2.find("model: nmsm"), 11, "model: fem-ish");
+  t2.replace(t2.find("model: solid"), 12, "model: fem-ish");
   expect_error(t2, "unknown model 'fem-ish'");
   std::string t3 = text;
   t3.replace(t3.find("young_modulus_pa: 4000"), 22, "young_modulus_pa: -4000");

@@ -20,7 +20,7 @@ namespace softatlas::io {
 // Material of one organ as written in atlas.yaml (`material:` map). Units in the names.
 // Any field not given keeps the default below. See docs/physics.md for each parameter's paper.
 struct MaterialSpec {
-  std::string model = "nmsm";        // tmsm | cmsm | nmsm | flexion | solid
+  std::string model = "solid";       // solid | nmsm | tmsm | cmsm | flexion (solid: the evidence, docs/physics.md)
   double young_modulus_pa = 4000.0;  // E in eq 9 of paper 000 (liver: a few kPa)
   double thickness_m = 1e-3;         // t in eq 9 (paper 000 uses 1e-3 m)
   double density_kg_m3 = 1060.0;     // organ mass = density * enclosed volume, spread by eq 8

@@ -36,7 +36,8 @@ enum class Integrator : int32_t {
 const char* to_string(Integrator integrator);
 bool parse_integrator(const std::string& text, Integrator& out);
 
-// Per-organ material parameters in the core (already in SI). Defaults match io::MaterialSpec.
+// Per-organ material parameters in the core (already in SI). Defaults match io::MaterialSpec,
+// except the model: the core defaults to the paper's nmsm, organ sets (io) to solid.
 struct Material {
   ModelKind model = ModelKind::nmsm;
   double young_modulus_pa = 4000.0;  // 000 eq 9
