@@ -157,7 +157,7 @@ void write_text(const fs::path& path, const std::string& text) {
 
 std::string web_dist_folder() {
   const char* env = std::getenv("SOFTATLAS_WEB_DIST");
-  for (const std::string dir : {std::string(env ? env : ""), std::string(SOFTATLAS_WEB_DIST)})
+  for (const std::string& dir : {std::string(env ? env : ""), std::string(SOFTATLAS_WEB_DIST)})
     if (!dir.empty() && fs::exists(fs::path(dir) / "index.html")) return dir;
   return "";
 }

@@ -5,41 +5,21 @@
 #include <filesystem>
 
 #include "softatlas/evidence/evidence.hpp"
+#include "softatlas/io/cli.hpp"
 #include "softatlas/sim/error.hpp"
 
 namespace softatlas::evidence {
 
-int cli_main(const std::vector<std::string>& args) {
-  if (args.size() < 2 || args[0] != "bench" || (args[1] != "accuracy" && args[1] != "stability"))
-    throw InputError("command line", "expected 'bench accuracy' or 'bench stability'");
-  const std::string what = args[1];
-  CLI::App app{what == "accuracy"
-                   ? "Error against run time of every model against a FEM reference; paper 000 tables"
-                   : "Stability maps over stiffness, time step, load and mesh quality, with and without the guard",
-               "softatlas bench " + what};
+namespace {
+
+struct EvidenceArgs {
   Options opt;
-  bool quick = false;
+  bool quick = false, no_paper = false, no_fit = false;
   std::string grid;
-  opt.data_dir = SOFTATLAS_DEFAULT_DATA;
-  app.add_flag("--quick", quick, "small grid for CI (< 5 min for both commands)");
-  app.add_option("--grid", grid, "tiny | quick | full (tiny is for tests)")->check(CLI::IsMember({"tiny", "quick", "full"}));
-  app.add_option("--out", opt.out_dir, "output folder (created): results.json and SVG plots")->required();
-  app.add_option("--data", opt.data_dir, "shared data folder holding meshes/sofa/liver-smooth.obj");
-  bool no_paper = false, no_fit = false;
-  if (what == "accuracy") {
-    app.add_flag("--no-paper", no_paper, "skip the paper 000 tables");
-    app.add_flag("--no-fit", no_fit, "skip the parameter fitting");
-  }
-  std::vector<std::string> rest(args.begin() + 2, args.end());
-  std::reverse(rest.begin(), rest.end());  // CLI11 parses a reversed vector
-  try {
-    app.parse(rest);
-  } catch (const CLI::CallForHelp&) {
-    std::fputs(app.help().c_str(), stdout);
-    return 0;
-  } catch (const CLI::ParseError& e) {
-    throw InputError("softatlas bench " + what, e.what());
-  }
+};
+
+int run_evidence(const std::string& what, EvidenceArgs a) {
+  auto& [opt, quick, no_paper, no_fit, grid] = a;
   opt.grid = quick ? Grid::quick : Grid::full;
   if (grid == "tiny") opt.grid = Grid::tiny;
   else if (grid == "quick") opt.grid = Grid::quick;
@@ -59,6 +39,39 @@ int cli_main(const std::vector<std::string>& args) {
   else summary["summary"] = result["summary"];
   std::printf("%s\n", summary.dump().c_str());
   return 0;
+}
+
+void add_one(CLI::App& bench, cli::Status* status, const std::string& what) {
+  CLI::App* app = bench.add_subcommand(
+      what, what == "accuracy" ? "error against run time of every model against a FEM reference; paper 000 tables"
+                               : "stability maps over stiffness, time step, load and mesh quality, with and without the guard");
+  auto a = std::make_shared<EvidenceArgs>();
+  a->opt.data_dir = SOFTATLAS_DEFAULT_DATA;
+  app->add_flag("--quick", a->quick, "small grid for CI (< 5 min for both commands)");
+  app->add_option("--grid", a->grid, "tiny | quick | full (tiny is for tests)")->check(CLI::IsMember({"tiny", "quick", "full"}));
+  app->add_option("--out", a->opt.out_dir, "output folder (created): results.json and SVG plots")->required();
+  app->add_option("--data", a->opt.data_dir, "shared data folder holding meshes/sofa/liver-smooth.obj");
+  if (what == "accuracy") {
+    app->add_flag("--no-paper", a->no_paper, "skip the paper 000 tables");
+    app->add_flag("--no-fit", a->no_fit, "skip the parameter fitting");
+  }
+  cli::on_run(app, status, [a, what] { return run_evidence(what, *a); });
+}
+
+}  // namespace
+
+void add_commands(CLI::App& root, cli::Status* status) {
+  CLI::App* bench = cli::group(root, "bench", "benchmarks (JSON on stdout)");
+  add_one(*bench, status, "accuracy");
+  add_one(*bench, status, "stability");
+}
+
+int cli_main(const std::vector<std::string>& args) {
+  CLI::App root{"softatlas", "softatlas"};
+  root.require_subcommand(1);
+  cli::Status status;
+  add_commands(root, &status);
+  return cli::run(root, status, args);
 }
 
 }  // namespace softatlas::evidence
