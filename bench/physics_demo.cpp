@@ -15,6 +15,7 @@
 
 #include "softatlas/bench/cli.hpp"
 #include "softatlas/io/cli.hpp"
+#include "softatlas/io/output_folder.hpp"
 #include "softatlas/io/cli_number.hpp"
 #include "softatlas/sim/error.hpp"
 #include "softatlas/bench/cli.hpp"
@@ -163,12 +164,8 @@ int physics_demo(const DemoArgs& a) {
                 r.feedback_mN[1], r.feedback_mN[2], r.volume_change_pct, r.max_displacement_mm, r.ms_per_step);
     runs.push_back(std::move(r));
   }
-  // Both files or none: a folder this run created is removed again when a write fails (full
-  // disk, read-only folder), and the error is one InputError naming the folder.
-  std::error_code ec;
-  const bool created = !fs::exists(out, ec);
-  fs::create_directories(out, ec);
-  if (ec) throw InputError(out, "cannot create the output folder: " + ec.message());
+  // Both files or none (a full disk, a read-only folder): one InputError naming the folder.
+  io::StagedFolder staged(out);
   nlohmann::json j;
   j["mesh"] = mesh_path;
   j["pull_mm"] = {0.0, pull_mm, pull_mm};
@@ -178,13 +175,10 @@ int physics_demo(const DemoArgs& a) {
     j["runs"].push_back({{"model", r.model}, {"feedback_force_mN", r.feedback_mN},
                          {"volume_change_pct", r.volume_change_pct}, {"max_displacement_mm", r.max_displacement_mm},
                          {"ms_per_step", r.ms_per_step}});
-  try {
-    io::write_file_atomic((fs::path(out) / "deformation.svg").string(), svg_picture(mesh, runs, face));
-    io::write_file_atomic((fs::path(out) / "results.json").string(), j.dump(2) + "\n");
-  } catch (...) {
-    if (created) fs::remove_all(out, ec);
-    throw;
-  }
+  staged.write_and_commit([&](const std::string& dir) {
+    io::write_file_atomic((fs::path(dir) / "deformation.svg").string(), svg_picture(mesh, runs, face));
+    io::write_file_atomic((fs::path(dir) / "results.json").string(), j.dump(2) + "\n");
+  });
   std::printf("physics demo: %s/results.json, %s/deformation.svg\n", out.c_str(), out.c_str());
   return 0;
 }

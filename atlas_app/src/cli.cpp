@@ -14,6 +14,7 @@
 #include "softatlas/app/lesson_run.hpp"
 #include "softatlas/app/viewer.hpp"
 #include "softatlas/io/cli.hpp"
+#include "softatlas/io/output_folder.hpp"
 #include "softatlas/sim/error.hpp"
 
 namespace softatlas::app {
@@ -127,7 +128,9 @@ int run_lesson_run(const LessonRunArgs& a) {
   {
     const Lesson lesson = load_lesson(lesson_path);
     const DeviceScript script = load_device_script(script_path);
-    const LessonReport r = run_lesson(lesson, script, out, ro);
+    io::StagedFolder staged(out);  // the pictures and the report appear together or not at all
+    const LessonReport r =
+        staged.write_and_commit([&](const std::string& dir) { return run_lesson(lesson, script, dir, a.ro); });
     for (const StepResult& s : r.steps)
       if (s.task)
         std::fprintf(stderr, "  step %d %-5s %s  %s\n", s.index + 1, s.kind.c_str(), s.passed ? "pass" : "FAIL", s.reason.c_str());

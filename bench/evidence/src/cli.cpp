@@ -6,6 +6,7 @@
 
 #include "softatlas/evidence/evidence.hpp"
 #include "softatlas/io/cli.hpp"
+#include "softatlas/io/output_folder.hpp"
 #include "softatlas/sim/error.hpp"
 
 namespace softatlas::evidence {
@@ -26,13 +27,17 @@ int run_evidence(const std::string& what, EvidenceArgs a) {
   else if (grid == "full") opt.grid = Grid::full;
   opt.paper_tables = !no_paper;
   opt.fit = !no_fit;
-  std::error_code ec;
-  std::filesystem::create_directories(opt.out_dir, ec);
-  if (ec || !std::filesystem::is_directory(opt.out_dir))
-    throw InputError(opt.out_dir, "cannot create the output folder (" + ec.message() + ")");
-  const nlohmann::json result = what == "accuracy" ? run_accuracy(opt) : run_stability(opt);
-  write_file_atomic(opt.out_dir + "/results.json", result.dump(1));
-  write_file_atomic(opt.out_dir + "/report.md", what == "accuracy" ? accuracy_markdown(result) : stability_markdown(result));
+  // Every plot, results.json and report.md appear together or not at all (a full disk, a
+  // read-only folder: one InputError naming the folder).
+  io::StagedFolder staged(opt.out_dir);
+  const nlohmann::json result = staged.write_and_commit([&](const std::string& dir) {
+    Options staged_opt = a.opt;
+    staged_opt.out_dir = dir;
+    const nlohmann::json r = what == "accuracy" ? run_accuracy(staged_opt) : run_stability(staged_opt);
+    write_file_atomic(dir + "/results.json", r.dump(1));
+    write_file_atomic(dir + "/report.md", what == "accuracy" ? accuracy_markdown(r) : stability_markdown(r));
+    return r;
+  });
   nlohmann::json summary = {{"command", "bench " + what}, {"results", opt.out_dir + "/results.json"},
                             {"seconds", result["seconds"]}};
   if (what == "accuracy") summary["runs"] = result["runs"].size();
