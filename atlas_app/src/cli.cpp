@@ -238,11 +238,7 @@ void add_commands(CLI::App& root, cli::Status* status) {
 }
 
 int cli_main(const std::vector<std::string>& args) {
-  CLI::App root{"softatlas", "softatlas"};
-  root.require_subcommand(1);
-  cli::Status status;
-  add_commands(root, &status);
-  return cli::run(root, status, args);
+  return cli::run_only(add_commands, args);
 }
 
 }  // namespace softatlas::app

@@ -1,10 +1,8 @@
 // The softatlas binary run as a user runs it: exit 0 ok, 1 bad input, 2 usage error (docs/user-guide.md),
 // every error one line on stderr beginning "softatlas:".
-#include <fcntl.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <gtest/gtest.h>
+
+#include "run_softatlas.hpp"
 
 #include <filesystem>
 #include <fstream>
@@ -16,17 +14,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-  int rc = -1;
-  std::string out, err;
-};
-
-std::string slurp(const fs::path& p) {
-  std::ifstream f(p, std::ios::binary);
-  std::ostringstream s;
-  s << f.rdbuf();
-  return s.str();
-}
+using softatlas::test::Result;
 
 // A scratch folder per test, removed afterwards.
 struct Scratch {
@@ -45,30 +33,8 @@ struct Scratch {
   std::string operator()(const std::string& name) const { return (dir / name).string(); }
 };
 
-// Runs `softatlas args...` with stdout and stderr captured (in files of the scratch folder).
-Result softatlas(const Scratch& tmp, const std::vector<std::string>& args) {
-  const std::string out = tmp(".stdout"), err = tmp(".stderr");
-  const pid_t pid = fork();
-  if (pid == 0) {
-    std::vector<char*> argv{const_cast<char*>(SOFTATLAS_EXE)};
-    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    const int o = open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int e = open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    dup2(o, 1);
-    dup2(e, 2);
-    execv(SOFTATLAS_EXE, argv.data());
-    _exit(127);
-  }
-  int status = 0;
-  waitpid(pid, &status, 0);
-  Result r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  r.out = slurp(out);
-  r.err = slurp(err);
-  fs::remove(out);
-  fs::remove(err);
-  return r;
+Result run(const Scratch& tmp, const std::vector<std::string>& args) {
+  return softatlas::test::run_softatlas(args, tmp(""));
 }
 
 int lines(const std::string& s) {
@@ -81,7 +47,7 @@ std::string data(const std::string& rel) { return std::string(SOFTATLAS_SOURCE_D
 
 // A usage error: status 2, the first stderr line names the command, the second points to --help.
 void expect_usage_error(const Scratch& tmp, const std::vector<std::string>& args, const std::string& names) {
-  const Result r = softatlas(tmp, args);
+  const Result r = run(tmp, args);
   std::string cmd;
   for (const auto& a : args) cmd += a + " ";
   EXPECT_EQ(r.rc, 2) << cmd << "\n" << r.err;
@@ -94,7 +60,7 @@ void expect_usage_error(const Scratch& tmp, const std::vector<std::string>& args
 // check` prints FILE:LINE:COLUMN: lines without the prefix, the format editors read).
 void expect_bad_input(const Scratch& tmp, const std::vector<std::string>& args, const std::string& names,
                       const std::string& prefix = "softatlas: ") {
-  const Result r = softatlas(tmp, args);
+  const Result r = run(tmp, args);
   std::string cmd;
   for (const auto& a : args) cmd += a + " ";
   EXPECT_EQ(r.rc, 1) << cmd << "\n" << r.err;
@@ -107,7 +73,7 @@ void expect_bad_input(const Scratch& tmp, const std::vector<std::string>& args, 
 
 TEST(SoftatlasCli, UsageErrorsExit2) {
   Scratch tmp;
-  const Result none = softatlas(tmp, {});
+  const Result none = run(tmp, {});
   EXPECT_EQ(none.rc, 2);
   EXPECT_EQ(none.err.rfind("usage: softatlas", 0), 0u) << none.err;
   expect_usage_error(tmp, {"frobnicate"}, "unknown command 'frobnicate'");
@@ -154,38 +120,38 @@ TEST(SoftatlasCli, BadInputExits1WithOneLine) {
 
 TEST(SoftatlasCli, SuccessExits0) {
   Scratch tmp;
-  Result r = softatlas(tmp, {"--version"});
+  Result r = run(tmp, {"--version"});
   EXPECT_EQ(r.rc, 0);
   EXPECT_EQ(r.out.rfind("softatlas ", 0), 0u) << r.out;
-  r = softatlas(tmp, {"--help"});
+  r = run(tmp, {"--help"});
   EXPECT_EQ(r.rc, 0);
   EXPECT_NE(r.out.find("usage: softatlas"), std::string::npos);
   for (const std::vector<std::string>& help : {std::vector<std::string>{"sim", "demo", "--help"},
                                               {"bench", "restore", "--help"}, {"demo", "--help"}}) {
-    r = softatlas(tmp, help);
+    r = run(tmp, help);
     EXPECT_EQ(r.rc, 0) << help[0] << " " << help[1];
     EXPECT_NE(r.out.find("Usage: softatlas " + help[0]), std::string::npos) << r.out;
   }
-  r = softatlas(tmp, {"sim", data("meshes/liver_1000.obj"), "--explain"});
+  r = run(tmp, {"sim", data("meshes/liver_1000.obj"), "--explain"});
   EXPECT_EQ(r.rc, 0) << r.err;
   EXPECT_NE(r.out.find("compiled plan"), std::string::npos);
-  r = softatlas(tmp, {"sim", "demo", "--hold-steps", "20", "--out", tmp("physics")});
+  r = run(tmp, {"sim", "demo", "--hold-steps", "20", "--out", tmp("physics")});
   EXPECT_EQ(r.rc, 0) << r.err;
   EXPECT_TRUE(fs::exists(tmp("physics/results.json")));
   EXPECT_TRUE(fs::exists(tmp("physics/deformation.svg")));
 #ifdef SOFTATLAS_HAVE_PIPELINE
-  r = softatlas(tmp, {"build", "--help"});
+  r = run(tmp, {"build", "--help"});
   EXPECT_EQ(r.rc, 0);
   EXPECT_NE(r.out.find("--stiffness"), std::string::npos);
-  r = softatlas(tmp, {"check", data("atlas")});
+  r = run(tmp, {"check", data("atlas")});
   EXPECT_EQ(r.rc, 0) << r.err;
   EXPECT_NE(r.out.find("\"ok\""), std::string::npos);
-  r = softatlas(tmp, {"export", data("atlas"), "-o", tmp("atlas.glb")});
+  r = run(tmp, {"export", data("atlas"), "-o", tmp("atlas.glb")});
   EXPECT_EQ(r.rc, 0) << r.err;
   EXPECT_TRUE(fs::exists(tmp("atlas.glb")));
 #endif
 #ifdef SOFTATLAS_HAVE_APP
-  r = softatlas(tmp, {"lesson", "check", data("lessons/liver_mobility.yaml"), "--device",
+  r = run(tmp, {"lesson", "check", data("lessons/liver_mobility.yaml"), "--device",
                       data("lessons/scripts/liver_mobility.pass.yaml")});
   EXPECT_EQ(r.rc, 0) << r.err;
   EXPECT_NE(r.out.find(": ok ("), std::string::npos) << r.out;

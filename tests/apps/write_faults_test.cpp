@@ -10,6 +10,8 @@
 
 #include <gtest/gtest.h>
 
+#include "run_softatlas.hpp"
+
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -23,33 +25,10 @@ namespace {
 
 std::string data(const std::string& rel) { return std::string(SOFTATLAS_SOURCE_DIR) + "/data/" + rel; }
 
-struct Result {
-  int rc = -1;
-  std::string err;
-};
+using softatlas::test::Result;
 
-Result softatlas(const std::vector<std::string>& args, const fs::path& err_file) {
-  const pid_t pid = fork();
-  if (pid == 0) {
-    std::vector<char*> argv{const_cast<char*>(SOFTATLAS_EXE)};
-    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    const int devnull = open("/dev/null", O_WRONLY);
-    const int e = open(err_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    dup2(devnull, 1);
-    dup2(e, 2);
-    execv(SOFTATLAS_EXE, argv.data());
-    _exit(127);
-  }
-  int status = 0;
-  waitpid(pid, &status, 0);
-  Result r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  std::ifstream f(err_file);
-  std::ostringstream s;
-  s << f.rdbuf();
-  r.err = s.str();
-  return r;
+Result run(const std::vector<std::string>& args, const fs::path& err_file) {
+  return softatlas::test::run_softatlas(args, err_file.string());
 }
 
 // Every path under dir (relative), hidden ones included.
@@ -128,7 +107,7 @@ void expect_clean_failure(const Writer& w, const fs::path& place, const fs::path
   const std::set<std::string> before = listing(watched);
   std::vector<std::string> args = w.args_before_out;
   args.push_back(place.string());
-  const Result r = softatlas(args, err);
+  const Result r = run(args, err);
   EXPECT_EQ(r.rc, 1) << w.name << " (" << why << ")\n" << r.err;
   // Progress lines may come first (bench, lesson run); the error is the one last line.
   std::vector<std::string> errors;
@@ -179,7 +158,7 @@ TEST(WriteFaults, SimDemoOnADiskWithRoomForOneFileLeavesNothing) {
   const Writer demo = writers()[0];
   std::vector<std::string> args = demo.args_before_out;
   args.push_back((tmp.mnt / "probe").string());
-  ASSERT_EQ(softatlas(args, tmp.dir / "err.txt").rc, 0);
+  ASSERT_EQ(run(args, tmp.dir / "err.txt").rc, 0);
   const uintmax_t svg = fs::file_size(tmp.mnt / "probe" / "deformation.svg");
   ASSERT_EQ(umount2(tmp.mnt.c_str(), MNT_DETACH), 0);
   tmp.mounted = false;

@@ -78,4 +78,13 @@ inline int run(CLI::App& root, const Status& status, const std::vector<std::stri
   return status.rc;
 }
 
+// The cli_main of one library: a root with only that library's subcommands (`add`), parsed and run.
+inline int run_only(void (*add)(CLI::App&, Status*), const std::vector<std::string>& args) {
+  CLI::App root{"softatlas", "softatlas"};
+  root.require_subcommand(1);
+  Status status;
+  add(root, &status);
+  return run(root, status, args);
+}
+
 }  // namespace softatlas::cli
