@@ -13,7 +13,8 @@
 #include <cstdio>
 #include <random>
 
-#include "cli_util.hpp"
+#include "softatlas/bench/cli.hpp"
+#include "softatlas/io/cli.hpp"
 #include "softatlas/io/organ_set.hpp"
 #include "softatlas/io/scene.hpp"
 
@@ -187,26 +188,17 @@ RestoreResult run_restore(const sim::SceneDesc& scene, const std::string& organ_
   return out;
 }
 
-int bench_restore(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas bench restore: rest drift, pull 30 mm, release, residual shape error"};
+namespace {
+struct RestoreArgs {
   std::string set_dir, organ, model_name, integrator_name;
   double pull_mm = 30.0, dt = -1.0, damping_ratio = -1.0, flexion_stiffness = -1.0;
   int threads = 1;
   bool json_out = false, no_sleep = false;
-  app.add_option("set", set_dir, "organ-set folder")->required();
-  app.add_option("--organ", organ, "organ to grasp and pull")->required();
-  app.add_option("--pull-mm", pull_mm, "pull distance (mm)")->check(CLI::Range(0.0, 500.0));
-  app.add_option("--model", model_name, "override every organ's model: tmsm | cmsm | nmsm | flexion");
-  app.add_option("--integrator", integrator_name, "verlet | semi-implicit | implicit (default: the set's)");
-  app.add_option("--dt", dt, "time step (s; default: the set's)");
-  app.add_option("--threads", threads, "worker threads")->check(CLI::Range(1, 64));
-  app.add_option("--damping-ratio", damping_ratio, "every spring's damping ratio (default: 000 eq 10)")
-      ->check(CLI::Range(0.0, 100.0));
-  app.add_option("--flexion-stiffness", flexion_stiffness, "flexion model: dihedral spring stiffness (N m / rad)")
-      ->check(CLI::Range(0.0, 1e3));
-  app.add_flag("--no-sleep", no_sleep, "resting organs are not put to sleep");
-  app.add_flag("--json", json_out, "print one JSON object");
-  if (int rc = parse_args(app, args, 2); rc >= 0) return rc;
+};
+
+int bench_restore(const RestoreArgs& a) {
+  const auto& [set_dir, organ, model_name, integrator_name, pull_mm, dt, damping_ratio, flexion_stiffness, threads,
+               json_out, no_sleep] = a;
 
   io::SceneOptions so;
   so.model_override = model_name;
@@ -249,6 +241,27 @@ int bench_restore(const std::vector<std::string>& args) {
                 r.volume_change_pct, r.finite ? "yes" : "no");
   }
   return r.finite ? 0 : 3;
+}
+
+}  // namespace
+
+void add_bench_restore(CLI::App& bench, cli::Status* status) {
+  CLI::App* app = bench.add_subcommand("restore", "rest drift, pull 30 mm, release, residual shape error");
+  auto a = std::make_shared<RestoreArgs>();
+  app->add_option("set", a->set_dir, "organ-set folder")->required();
+  app->add_option("--organ", a->organ, "organ to grasp and pull")->required();
+  app->add_option("--pull-mm", a->pull_mm, "pull distance (mm)")->check(CLI::Range(0.0, 500.0));
+  app->add_option("--model", a->model_name, "override every organ's model: tmsm | cmsm | nmsm | flexion");
+  app->add_option("--integrator", a->integrator_name, "verlet | semi-implicit | implicit (default: the set's)");
+  app->add_option("--dt", a->dt, "time step (s; default: the set's)");
+  app->add_option("--threads", a->threads, "worker threads")->check(CLI::Range(1, 64));
+  app->add_option("--damping-ratio", a->damping_ratio, "every spring's damping ratio (default: 000 eq 10)")
+      ->check(CLI::Range(0.0, 100.0));
+  app->add_option("--flexion-stiffness", a->flexion_stiffness, "flexion model: dihedral spring stiffness (N m / rad)")
+      ->check(CLI::Range(0.0, 1e3));
+  app->add_flag("--no-sleep", a->no_sleep, "resting organs are not put to sleep");
+  app->add_flag("--json", a->json_out, "print one JSON object");
+  cli::on_run(app, status, [a] { return bench_restore(*a); });
 }
 
 }  // namespace softatlas::bench

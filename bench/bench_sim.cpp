@@ -12,7 +12,7 @@
 #include <filesystem>
 #include <numeric>
 
-#include "cli_util.hpp"
+#include "softatlas/io/cli.hpp"
 #include "softatlas/io/cli_number.hpp"
 #include "softatlas/bench/cli.hpp"
 #include "softatlas/io/mesh_io.hpp"
@@ -68,26 +68,17 @@ void bench_ref_scenario(sim::OrganDesc& d, sim::ModelKind model) {
   m.total_mass_kg = 1000.0 * 1e-3 * area;
 }
 
-int bench_sim(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas bench sim: time the physics step on real meshes (bench-ref scenario)"};
+struct BenchSimArgs {
   std::vector<std::string> meshes;
   std::string model_name = "tmsm", integrator_name = "semi-implicit";
   int steps = 2000, repeat = 5, cg_iterations = 25, threads = 1, warmup = 200;
   bool json_out = false, no_gravity = false, no_guard = false;
   double dt = 1e-4;
-  app.add_option("--mesh", meshes, "mesh files (OBJ, PLY, STL, OFF, glTF); each is one body")->required();
-  app.add_option("--model", model_name, "tmsm | cmsm | nmsm | flexion");
-  app.add_option("--integrator", integrator_name, "verlet | semi-implicit | implicit");
-  app.add_option("--cg-iterations", cg_iterations, "CG iterations per implicit step")->check(CLI::Range(1, 100000));
-  app.add_option("--steps", steps, "timed steps per repeat")->check(CLI::Range(1, 1000000));
-  app.add_option("--repeat", repeat, "timed repeats (the median is reported)")->check(CLI::Range(1, 1000));
-  app.add_option("--warmup", warmup, "untimed steps first")->check(CLI::Range(0, 1000000));
-  app.add_option("--threads", threads, "worker threads (the core steps organs in parallel)")->check(CLI::Range(1, 64));
-  app.add_option("--dt", dt, "time step (s)")->check(io::finite_in(1e-7, 0.1));
-  app.add_flag("--json", json_out, "print one JSON object");
-  app.add_flag("--no-gravity", no_gravity, "rest shape stays put (checks force-free rest)");
-  app.add_flag("--no-guard", no_guard, "turn the stability guard off");
-  if (int rc = parse_args(app, args, 2); rc >= 0) return rc;
+};
+
+int bench_sim(const BenchSimArgs& a) {
+  const auto& [meshes, model_name, integrator_name, steps, repeat, cg_iterations, threads, warmup, json_out, no_gravity,
+               no_guard, dt] = a;
 
   sim::ModelKind model;
   if (!sim::parse_model_kind(model_name, model))
@@ -174,21 +165,16 @@ int bench_sim(const std::vector<std::string>& args) {
   return finite ? 0 : 3;
 }
 
-int sim_explain(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas sim: compile a scene and print its plan"};
+struct SimArgs {
   std::vector<std::string> inputs, shown;
   std::string model_name, integrator_name = "semi-implicit";
   double dt = 1e-3;
   bool explain_flag = false, gravity = false, no_guard = false;
-  app.add_option("inputs", inputs, "an organ-set folder, or mesh files")->required();
-  app.add_flag("--explain", explain_flag, "print the compiled plan");
-  app.add_option("--show", shown, "organs to show (default: all)")->delimiter(',');
-  app.add_option("--model", model_name, "override every organ's model: tmsm | cmsm | nmsm | flexion");
-  app.add_option("--integrator", integrator_name, "verlet | semi-implicit | implicit");
-  app.add_option("--dt", dt, "time step (s)")->check(io::finite_in(1e-7, 0.1));
-  app.add_flag("--gravity", gravity, "gravity on");
-  app.add_flag("--no-guard", no_guard, "turn the stability guard off");
-  if (int rc = parse_args(app, args, 1); rc >= 0) return rc;
+};
+
+int sim_explain(const SimArgs& a) {
+  const auto& [inputs, shown, model_name, integrator_name, dt, explain_flag, gravity, no_guard] = a;
+  (void)explain_flag;
   io::SceneOptions opt;
   if (!sim::parse_integrator(integrator_name, opt.integrator))
     throw InputError("--integrator", "unknown integrator '" + integrator_name + "'");
@@ -218,18 +204,56 @@ int sim_explain(const std::vector<std::string>& args) {
   return 0;
 }
 
+void add_bench_sim(CLI::App& bench, cli::Status* status) {
+  CLI::App* app = bench.add_subcommand("sim", "time the physics step on real meshes (bench-ref scenario)");
+  auto a = std::make_shared<BenchSimArgs>();
+  app->add_option("--mesh", a->meshes, "mesh files (OBJ, PLY, STL, OFF, glTF); each is one body")->required();
+  app->add_option("--model", a->model_name, "tmsm | cmsm | nmsm | flexion");
+  app->add_option("--integrator", a->integrator_name, "verlet | semi-implicit | implicit");
+  app->add_option("--cg-iterations", a->cg_iterations, "CG iterations per implicit step")->check(CLI::Range(1, 100000));
+  app->add_option("--steps", a->steps, "timed steps per repeat")->check(CLI::Range(1, 1000000));
+  app->add_option("--repeat", a->repeat, "timed repeats (the median is reported)")->check(CLI::Range(1, 1000));
+  app->add_option("--warmup", a->warmup, "untimed steps first")->check(CLI::Range(0, 1000000));
+  app->add_option("--threads", a->threads, "worker threads (the core steps organs in parallel)")->check(CLI::Range(1, 64));
+  app->add_option("--dt", a->dt, "time step (s)")->check(io::finite_in(1e-7, 0.1));
+  app->add_flag("--json", a->json_out, "print one JSON object");
+  app->add_flag("--no-gravity", a->no_gravity, "rest shape stays put (checks force-free rest)");
+  app->add_flag("--no-guard", a->no_guard, "turn the stability guard off");
+  cli::on_run(app, status, [a] { return bench_sim(*a); });
+}
+
+// `sim SET|MESH... --explain`, and `sim demo` (physics_demo.cpp) below it.
+CLI::App* add_sim(CLI::App& root, cli::Status* status) {
+  CLI::App* app = root.add_subcommand("sim", "compile a scene and print its plan (SET|MESH... --explain), or sim demo");
+  app->require_subcommand(0, 1);
+  auto a = std::make_shared<SimArgs>();
+  app->add_option("inputs", a->inputs, "an organ-set folder, or mesh files");
+  app->add_flag("--explain", a->explain_flag, "print the compiled plan");
+  app->add_option("--show", a->shown, "organs to show (default: all)")->delimiter(',');
+  app->add_option("--model", a->model_name, "override every organ's model: tmsm | cmsm | nmsm | flexion");
+  app->add_option("--integrator", a->integrator_name, "verlet | semi-implicit | implicit");
+  app->add_option("--dt", a->dt, "time step (s)")->check(io::finite_in(1e-7, 0.1));
+  app->add_flag("--gravity", a->gravity, "gravity on");
+  app->add_flag("--no-guard", a->no_guard, "turn the stability guard off");
+  app->callback([app, a, status] {
+    if (!app->get_subcommands().empty()) return;  // `sim demo` ran
+    if (a->inputs.empty()) throw CLI::RequiredError("inputs (an organ-set folder, or mesh files)");
+    status->rc = sim_explain(*a);
+  });
+  return app;
+}
+
 }  // namespace
 
-int physics_demo(const std::vector<std::string>& args);
-int bench_restore(const std::vector<std::string>& args);  // bench_restore.cpp
+void add_commands(CLI::App& root, cli::Status* status) {
+  add_sim_demo(*add_sim(root, status), status);
+  CLI::App* bench = cli::group(root, "bench", "benchmarks (JSON on stdout)");
+  add_bench_sim(*bench, status);
+  add_bench_restore(*bench, status);
+}
 
 int cli_main(const std::vector<std::string>& args) {
-  if (args.size() >= 2 && args[0] == "bench" && args[1] == "sim") return bench_sim(args);
-  if (args.size() >= 2 && args[0] == "bench" && args[1] == "restore") return bench_restore(args);
-  if (args.size() >= 2 && args[0] == "sim" && args[1] == "demo") return physics_demo(args);
-  if (!args.empty() && args[0] == "sim") return sim_explain(args);
-  std::fprintf(stderr, "softatlas: unknown bench command\n");
-  return 2;
+  return cli::run_only(add_commands, args);
 }
 
 }  // namespace softatlas::bench

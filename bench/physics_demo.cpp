@@ -13,7 +13,9 @@
 #include <chrono>
 #include <sstream>
 
-#include "cli_util.hpp"
+#include "softatlas/bench/cli.hpp"
+#include "softatlas/io/cli.hpp"
+#include "softatlas/io/output_folder.hpp"
 #include "softatlas/io/cli_number.hpp"
 #include "softatlas/sim/error.hpp"
 #include "softatlas/bench/cli.hpp"
@@ -90,18 +92,16 @@ std::string svg_picture(const io::TriMesh& rest, const std::vector<DemoRun>& run
 
 }  // namespace
 
-int physics_demo(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas sim demo: pull the shipped liver with every model"};
+namespace {
+struct DemoArgs {
   std::string mesh_path = std::string(SOFTATLAS_DATA_DIR) + "/meshes/liver_1000.obj";
   std::string out = "out/physics";
   double pull_mm = 20.0;
   int hold_steps = 300;
-  app.add_option("--mesh", mesh_path, "surface mesh in mm");
-  app.add_option("--out", out, "output folder");
-  app.add_option("--pull-mm", pull_mm, "pull of the top face along [0, 1, 1] (mm)")->check(io::finite_in(-200, 200));
-  app.add_option("--hold-steps", hold_steps, "steps (1 ms) the face is held after the 30 iterations (at most 20 s)")
-      ->check(CLI::Range(0, 20000));
-  if (int rc = parse_args(app, args, 2); rc >= 0) return rc;
+};
+
+int physics_demo(const DemoArgs& a) {
+  const auto& [mesh_path, out, pull_mm, hold_steps] = a;
   const io::TriMesh mesh = io::read_mesh(mesh_path);
   // top face (highest centroid) and the 20 lowest vertices held, as in the paper's setting
   size_t top = 0;
@@ -164,12 +164,8 @@ int physics_demo(const std::vector<std::string>& args) {
                 r.feedback_mN[1], r.feedback_mN[2], r.volume_change_pct, r.max_displacement_mm, r.ms_per_step);
     runs.push_back(std::move(r));
   }
-  // Both files or none: a folder this run created is removed again when a write fails (full
-  // disk, read-only folder), and the error is one InputError naming the folder.
-  std::error_code ec;
-  const bool created = !fs::exists(out, ec);
-  fs::create_directories(out, ec);
-  if (ec) throw InputError(out, "cannot create the output folder: " + ec.message());
+  // Both files or none (a full disk, a read-only folder): one InputError naming the folder.
+  io::StagedFolder staged(out);
   nlohmann::json j;
   j["mesh"] = mesh_path;
   j["pull_mm"] = {0.0, pull_mm, pull_mm};
@@ -179,15 +175,25 @@ int physics_demo(const std::vector<std::string>& args) {
     j["runs"].push_back({{"model", r.model}, {"feedback_force_mN", r.feedback_mN},
                          {"volume_change_pct", r.volume_change_pct}, {"max_displacement_mm", r.max_displacement_mm},
                          {"ms_per_step", r.ms_per_step}});
-  try {
-    io::write_file_atomic((fs::path(out) / "deformation.svg").string(), svg_picture(mesh, runs, face));
-    io::write_file_atomic((fs::path(out) / "results.json").string(), j.dump(2) + "\n");
-  } catch (...) {
-    if (created) fs::remove_all(out, ec);
-    throw;
-  }
+  staged.write_and_commit([&](const std::string& dir) {
+    io::write_file_atomic((fs::path(dir) / "deformation.svg").string(), svg_picture(mesh, runs, face));
+    io::write_file_atomic((fs::path(dir) / "results.json").string(), j.dump(2) + "\n");
+  });
   std::printf("physics demo: %s/results.json, %s/deformation.svg\n", out.c_str(), out.c_str());
   return 0;
+}
+
+}  // namespace
+
+void add_sim_demo(CLI::App& sim, cli::Status* status) {
+  CLI::App* app = sim.add_subcommand("demo", "pull the shipped liver with every model");
+  auto a = std::make_shared<DemoArgs>();
+  app->add_option("--mesh", a->mesh_path, "surface mesh in mm");
+  app->add_option("--out", a->out, "output folder");
+  app->add_option("--pull-mm", a->pull_mm, "pull of the top face along [0, 1, 1] (mm)")->check(io::finite_in(-200, 200));
+  app->add_option("--hold-steps", a->hold_steps, "steps (1 ms) the face is held after the 30 iterations (at most 20 s)")
+      ->check(CLI::Range(0, 20000));
+  cli::on_run(app, status, [a] { return physics_demo(*a); });
 }
 
 }  // namespace softatlas::bench

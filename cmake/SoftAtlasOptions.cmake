@@ -2,6 +2,10 @@
 add_library(softatlas_options INTERFACE)
 target_compile_options(softatlas_options INTERFACE
   $<$<CXX_COMPILER_ID:GNU,Clang>:-Wall -Wextra -Wpedantic -Wno-unused-parameter>)
+if(SOFTATLAS_WERROR)
+  # A clean build prints no warning (issue 17); CI builds with -DSOFTATLAS_WERROR=ON.
+  target_compile_options(softatlas_options INTERFACE $<$<CXX_COMPILER_ID:GNU,Clang>:-Werror>)
+endif()
 if(SOFTATLAS_NATIVE)
   include(CheckCXXCompilerFlag)
   check_cxx_compiler_flag(-march=native SOFTATLAS_HAS_MARCH_NATIVE)

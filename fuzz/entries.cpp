@@ -20,17 +20,9 @@ const std::vector<std::string>& targets() {
 }
 
 void feed(const std::string& target, const std::string& bytes) {
-  if (feed_reader(target, bytes)) return;
+  if (feed_reader(target, bytes) || feed_lesson(target, bytes)) return;
   const fs::path dir = scratch();
-  if (target == "lesson") {
-    const fs::path f = dir / "lessons" / "input.yaml";
-    write_input(f.string(), bytes);
-    app::load_lesson(f.string());
-  } else if (target == "device_script") {
-    const fs::path f = dir / "script.yaml";
-    write_input(f.string(), bytes);
-    app::load_device_script(f.string());
-  } else if (target == "seeds") {
+  if (target == "seeds") {
     const fs::path f = dir / "seeds.yaml";
     write_input(f.string(), bytes);
     pipeline::read_seeds(f.string());

@@ -21,6 +21,8 @@ void feed(const std::string& target, const std::string& bytes);
 // The part of feed() for the readers of volumes, meshes and organ sets (fuzz/readers.cpp):
 // false when `target` is not one of them.
 bool feed_reader(const std::string& target, const std::string& bytes);
+// The same for lessons and device scripts (fuzz/lessons.cpp).
+bool feed_lesson(const std::string& target, const std::string& bytes);
 
 // Scratch folder of this process (created on first use, removed at exit), and a file writer.
 const std::string& scratch();

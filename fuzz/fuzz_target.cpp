@@ -19,8 +19,10 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     const std::string bytes(reinterpret_cast<const char*>(data), size);
-#ifdef SOFTATLAS_FUZZ_READER
+#if defined(SOFTATLAS_FUZZ_READER)
     softatlas::fuzz::feed_reader(SOFTATLAS_FUZZ_TARGET, bytes);  // links only the reader sources
+#elif defined(SOFTATLAS_FUZZ_LESSON)
+    softatlas::fuzz::feed_lesson(SOFTATLAS_FUZZ_TARGET, bytes);  // the lesson sources and the readers
 #else
     softatlas::fuzz::feed(SOFTATLAS_FUZZ_TARGET, bytes);
 #endif

@@ -1,6 +1,6 @@
-// softatlas: one command, subcommands like git. Thin: it parses the first words and hands the
-// rest to the library that owns the subcommand. Bad input anywhere surfaces as InputError and
-// becomes one line on stderr and exit status 1.
+// softatlas: one command, subcommands like git, on one CLI11 command line: each library registers
+// its subcommands (softatlas/io/cli.hpp). Exit status: 0 ok, 1 bad input (an InputError anywhere
+// becomes one line on stderr), 2 usage error, 3 `lesson run` with a failed task.
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "softatlas/bench/cli.hpp"
+#include "softatlas/io/cli.hpp"
 #include "softatlas/io/mesh_io.hpp"
 #include "softatlas/sim/error.hpp"
 #ifdef SOFTATLAS_HAVE_PIPELINE
@@ -54,12 +55,6 @@ constexpr const char* kUsage = R"(usage: softatlas <command> [options]
 Run 'softatlas <command> --help' for the options of one command.
 )";
 
-int unavailable(const std::string& what, const char* option) {
-  std::fprintf(stderr, "softatlas: '%s' is not part of this build (configure with %s=ON)\n",
-               what.c_str(), option);
-  return 2;
-}
-
 // Runs f with stdout sent to `path` (the JSON a subcommand prints goes to a file, not the
 // terminal); returns f's status.
 template <class F>
@@ -93,20 +88,7 @@ nlohmann::json read_json(const std::string& path) {
 
 // `softatlas demo [--out DIR]`: the main job on the embedded data. Each part that is built runs;
 // its progress goes to stderr, its JSON to files in DIR, and a short summary to stdout.
-int demo(const std::vector<std::string>& args) {
-  std::string out = "out/demo";
-  for (size_t i = 1; i < args.size(); ++i) {
-    if (args[i] == "--out" && i + 1 < args.size()) {
-      out = args[++i];
-    } else if (args[i] == "-h" || args[i] == "--help") {
-      std::puts("usage: softatlas demo [--out DIR]\n  builds the embedded sample CT into an organ set, "
-                "exports glTF, pulls a liver with every physics model and plays a lesson headless;\n"
-                "  prints a short summary, writes every JSON report under DIR");
-      return 0;
-    } else {
-      throw softatlas::InputError(args[i], "unknown option (expected --out DIR)");
-    }
-  }
+int demo(const std::string& out) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string data = SOFTATLAS_DATA_DIR;
   std::vector<std::string> summary;
@@ -178,37 +160,36 @@ int demo(const std::vector<std::string>& args) {
   return 0;
 }
 
+// The one command line: every library registers its subcommands on one CLI::App (each part that
+// is built; softatlas/io/cli.hpp has the exit convention).
 int dispatch(const std::vector<std::string>& args) {
-  const std::string& cmd = args[0];
-  const std::string sub = args.size() > 1 ? args[1] : "";
-  if (cmd == "demo") return demo(args);
-  if (cmd == "bench" && (sub == "sim" || sub == "restore")) return softatlas::bench::cli_main(args);
-  if (cmd == "sim") return softatlas::bench::cli_main(args);
-  if (cmd == "bench" && (sub == "accuracy" || sub == "stability")) {
+  CLI::App root{"SoftAtlas: CT -> physically simulated anatomy atlas", "softatlas"};
+  root.require_subcommand(1);
+  softatlas::cli::Status status;
+  CLI::App* demo_cmd = root.add_subcommand(
+      "demo", "build the embedded sample CT into an organ set, export glTF, pull a liver with every physics model "
+              "and play a lesson headless; prints a short summary, writes every JSON report under --out");
+  auto demo_out = std::make_shared<std::string>("out/demo");
+  demo_cmd->add_option("--out", *demo_out, "output folder (default out/demo)");
+  softatlas::cli::on_run(demo_cmd, &status, [demo_out] { return demo(*demo_out); });
+  softatlas::bench::add_commands(root, &status);
 #ifdef SOFTATLAS_HAVE_EVIDENCE
-    return softatlas::evidence::cli_main(args);
-#else
-    return unavailable("bench " + sub, "SOFTATLAS_BUILD_BENCH");
+  softatlas::evidence::add_commands(root, &status);
 #endif
-  }
-  if (cmd == "build" || cmd == "segment" || cmd == "check" || cmd == "export" ||
-      (cmd == "bench" && (sub == "pipeline" || sub == "segment"))) {
 #ifdef SOFTATLAS_HAVE_PIPELINE
-    return softatlas::pipeline::cli_main(args);
-#else
-    return unavailable(cmd, "SOFTATLAS_BUILD_PIPELINE");
+  softatlas::pipeline::add_commands(root, &status);
 #endif
-  }
-  if (cmd == "view" || cmd == "lesson" ||
-      (cmd == "bench" && (sub == "render" || sub == "haptic"))) {
 #ifdef SOFTATLAS_HAVE_APP
-    return softatlas::app::cli_main(args);
-#else
-    return unavailable(cmd, "SOFTATLAS_BUILD_APP");
+  softatlas::app::add_commands(root, &status);
 #endif
+  bool known = false;
+  for (const CLI::App* s : root.get_subcommands([](CLI::App*) { return true; })) known = known || s->get_name() == args[0];
+  if (!known) {
+    std::fprintf(stderr, "softatlas: unknown command '%s' (or not part of this build)\n%s",
+                 softatlas::io::printable_text(args[0], 80).c_str(), kUsage);
+    return softatlas::cli::kUsageError;
   }
-  std::fprintf(stderr, "softatlas: unknown command '%s'\n%s", cmd.c_str(), kUsage);
-  return 2;
+  return softatlas::cli::run(root, status, args);
 }
 
 }  // namespace
@@ -237,7 +218,7 @@ int main(int argc, char** argv) {
         ++shown;
       }
     if (total > shown) std::fprintf(stderr, "softatlas: ... and %d more errors\n", total - shown);
-    return 1;
+    return softatlas::cli::kBadInput;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "softatlas: error: out of memory (the input asks for more than this machine has)\n");
     return 1;

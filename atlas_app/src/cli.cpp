@@ -1,4 +1,5 @@
-// softatlas view | lesson check | lesson run | bench render | bench haptic
+// softatlas view | lesson check | lesson run | bench render | bench haptic, registered on the one
+// command line (softatlas/io/cli.hpp).
 #include "softatlas/app/cli.hpp"
 
 #include <CLI/CLI.hpp>
@@ -12,22 +13,12 @@
 #include "softatlas/app/lesson.hpp"
 #include "softatlas/app/lesson_run.hpp"
 #include "softatlas/app/viewer.hpp"
+#include "softatlas/io/cli.hpp"
+#include "softatlas/io/output_folder.hpp"
 #include "softatlas/sim/error.hpp"
 
 namespace softatlas::app {
 namespace {
-
-// CLI11 wants argv-style input; args[0..skip) are the subcommand words.
-int parse(CLI::App& app, const std::vector<std::string>& args, size_t skip) {
-  std::vector<std::string> rest(args.begin() + static_cast<long>(skip), args.end());
-  std::reverse(rest.begin(), rest.end());
-  try {
-    app.parse(rest);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? -1 : 2;  // --help: -1 (print and stop with 0)
-  }
-  return 0;
-}
 
 bool is_lesson_file(const std::string& path) {
   namespace fs = std::filesystem;
@@ -35,23 +26,14 @@ bool is_lesson_file(const std::string& path) {
   return fs::is_regular_file(path) && (ext == ".yaml" || ext == ".yml");
 }
 
-int cmd_view(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas view SET|LESSON: show an organ set or a lesson"};
-  std::string target, screenshot, view = "anterior";
-  bool headless = false, labels = false, norealtime = false;
+struct ViewArgs {
+  std::string target, screenshot, view = "anterior", slice;
+  bool headless = false, labels = false, norealtime = false, frames_given = false;
   int frames = 1, width = 1280, height = 720;
-  app.add_option("target", target, "organ set folder or lesson .yaml")->required();
-  app.add_flag("--headless", headless, "render off-screen (OSMesa), no window");
-  app.add_option("--frames", frames, "frames to render (headless)")->check(CLI::Range(1, 100000));
-  app.add_option("--width", width, "width in pixels")->check(CLI::Range(16, 8192));
-  app.add_option("--height", height, "height in pixels")->check(CLI::Range(16, 8192));
-  app.add_option("--screenshot", screenshot, "write the last frame as PNG");
-  app.add_option("--view", view, "anterior|posterior|left|right|superior|inferior");
-  app.add_flag("--labels", labels, "label every organ");
-  std::string slice;
-  app.add_option("--slice", slice, "cut the organs at a plane: axial:Z, coronal:Y or sagittal:X (mm, RAS)");
-  app.add_flag("--no-realtime", norealtime, "do not ask for SCHED_FIFO for the haptic loop");
-  if (int rc = parse(app, args, 1)) return rc < 0 ? 0 : rc;
+};
+
+int run_view(const ViewArgs& a) {
+  const auto& [target, screenshot, view, slice, headless, labels, norealtime, frames_given, frames, width, height] = a;
   const SlicePlane slice_plane = parse_slice_option(slice);
   std::unique_ptr<Lesson> lesson;
   io::OrganSet set;
@@ -66,7 +48,7 @@ int cmd_view(const std::vector<std::string>& args) {
     wo.width = width;
     wo.height = height;
     wo.realtime = !norealtime;
-    if (app.count("--frames")) wo.frames = frames;
+    if (frames_given) wo.frames = frames;
     wo.screenshot = screenshot;
     wo.slice = slice;
     wo.slice_plane = slice_plane;
@@ -105,14 +87,8 @@ int cmd_view(const std::vector<std::string>& args) {
   return 0;
 }
 
-int cmd_lesson(const std::vector<std::string>& args) {
-  const std::string sub = args.size() > 1 ? args[1] : "";
-  if (sub == "check") {
-    CLI::App app{"softatlas lesson check LESSON [--device SCRIPT]: validate only"};
-    std::string lesson_path, script_path;
-    app.add_option("lesson", lesson_path, "lesson .yaml")->required();
-    app.add_option("--device", script_path, "also validate a device script against the lesson");
-    if (int rc = parse(app, args, 2)) return rc < 0 ? 0 : rc;
+int run_lesson_check(const std::string& lesson_path, const std::string& script_path) {
+  {
     // Every error of the lesson and of the script, one FILE:LINE:COLUMN: message line each (the
     // format editors and CI problem matchers read), then exit 1.
     int errors = 0;
@@ -140,19 +116,21 @@ int cmd_lesson(const std::vector<std::string>& args) {
                 lesson.task_count(), lesson.organ_set_path.c_str());
     return 0;
   }
-  if (sub == "run") {
-    CLI::App app{"softatlas lesson run LESSON --device SCRIPT --out DIR: play headless"};
-    std::string lesson_path, script_path, out;
-    RunOptions ro;
-    app.add_option("lesson", lesson_path, "lesson .yaml")->required();
-    app.add_option("--device", script_path, "scripted device .yaml")->required();
-    app.add_option("--out", out, "output folder (PNG per step, report.json)")->required();
-    app.add_option("--width", ro.width, "picture width")->check(CLI::Range(16, 8192));
-    app.add_option("--height", ro.height, "picture height")->check(CLI::Range(16, 8192));
-    if (int rc = parse(app, args, 2)) return rc < 0 ? 0 : rc;
+}
+
+struct LessonRunArgs {
+  std::string lesson_path, script_path, out;
+  RunOptions ro;
+};
+
+int run_lesson_run(const LessonRunArgs& a) {
+  const auto& [lesson_path, script_path, out, ro] = a;
+  {
     const Lesson lesson = load_lesson(lesson_path);
     const DeviceScript script = load_device_script(script_path);
-    const LessonReport r = run_lesson(lesson, script, out, ro);
+    io::StagedFolder staged(out);  // the pictures and the report appear together or not at all
+    const LessonReport r =
+        staged.write_and_commit([&](const std::string& dir) { return run_lesson(lesson, script, dir, a.ro); });
     for (const StepResult& s : r.steps)
       if (s.task)
         std::fprintf(stderr, "  step %d %-5s %s  %s\n", s.index + 1, s.kind.c_str(), s.passed ? "pass" : "FAIL", s.reason.c_str());
@@ -161,57 +139,106 @@ int cmd_lesson(const std::vector<std::string>& args) {
     std::fputs(r.json.c_str(), stdout);
     return r.passed ? 0 : 3;
   }
-  std::fprintf(stderr, "usage: softatlas lesson check LESSON | lesson run LESSON --device SCRIPT --out DIR\n");
-  return 2;
 }
 
-int cmd_bench(const std::vector<std::string>& args) {
-  const std::string sub = args[1];
-  if (sub == "render") {
-    CLI::App app{"softatlas bench render SET [--width W --height H --frames N] --json"};
-    RenderBenchOptions o;
-    bool json = false, static_mesh = false, no_ui = false;
-    app.add_option("set", o.set, "organ set folder")->required();
-    app.add_option("--width", o.width)->check(CLI::Range(16, 8192));
-    app.add_option("--height", o.height)->check(CLI::Range(16, 8192));
-    app.add_option("--frames", o.frames)->check(CLI::Range(1, 1000000));
-    app.add_flag("--static", static_mesh, "do not deform / re-upload the meshes each frame");
-    app.add_flag("--no-ui", no_ui, "no labels / ImGui overlay");
-    app.add_flag("--json", json, "print JSON (the default output)");
-    if (int rc = parse(app, args, 2)) return rc < 0 ? 0 : rc;
-    o.deform = !static_mesh;
-    o.ui = !no_ui;
-    std::fputs(bench_render(o).c_str(), stdout);
-    return 0;
+void add_view(CLI::App& root, cli::Status* status) {
+  CLI::App* app = root.add_subcommand("view", "show an organ set or a lesson (SET|LESSON)");
+  auto a = std::make_shared<ViewArgs>();
+  app->add_option("target", a->target, "organ set folder or lesson .yaml")->required();
+  app->add_flag("--headless", a->headless, "render off-screen (OSMesa), no window");
+  CLI::Option* frames = app->add_option("--frames", a->frames, "frames to render (headless)")->check(CLI::Range(1, 100000));
+  app->add_option("--width", a->width, "width in pixels")->check(CLI::Range(16, 8192));
+  app->add_option("--height", a->height, "height in pixels")->check(CLI::Range(16, 8192));
+  app->add_option("--screenshot", a->screenshot, "write the last frame as PNG");
+  app->add_option("--view", a->view, "anterior|posterior|left|right|superior|inferior");
+  app->add_flag("--labels", a->labels, "label every organ");
+  app->add_option("--slice", a->slice, "cut the organs at a plane: axial:Z, coronal:Y or sagittal:X (mm, RAS)");
+  app->add_flag("--no-realtime", a->norealtime, "do not ask for SCHED_FIFO for the haptic loop");
+  cli::on_run(app, status, [a, frames] {
+    a->frames_given = frames->count() > 0;
+    return run_view(*a);
+  });
+}
+
+void add_lesson(CLI::App& root, cli::Status* status) {
+  CLI::App* lesson = cli::group(root, "lesson", "validate or play a lesson");
+  {
+    CLI::App* app = lesson->add_subcommand("check", "validate only: LESSON [--device SCRIPT]");
+    auto paths = std::make_shared<std::pair<std::string, std::string>>();
+    app->add_option("lesson", paths->first, "lesson .yaml")->required();
+    app->add_option("--device", paths->second, "also validate a device script against the lesson");
+    cli::on_run(app, status, [paths] { return run_lesson_check(paths->first, paths->second); });
   }
-  CLI::App app{"softatlas bench haptic SET [--seconds S] --json"};
+  CLI::App* app = lesson->add_subcommand("run", "play headless: LESSON --device SCRIPT --out DIR");
+  auto a = std::make_shared<LessonRunArgs>();
+  app->add_option("lesson", a->lesson_path, "lesson .yaml")->required();
+  app->add_option("--device", a->script_path, "scripted device .yaml")->required();
+  app->add_option("--out", a->out, "output folder (PNG per step, report.json)")->required();
+  app->add_option("--width", a->ro.width, "picture width")->check(CLI::Range(16, 8192));
+  app->add_option("--height", a->ro.height, "picture height")->check(CLI::Range(16, 8192));
+  cli::on_run(app, status, [a] { return run_lesson_run(*a); });
+}
+
+struct RenderArgs {
+  RenderBenchOptions o;
+  bool json = false, static_mesh = false, no_ui = false;
+};
+
+struct HapticArgs {
   HapticBenchOptions o;
   bool json = false, norealtime = false;
-  app.add_option("set", o.set, "organ set folder")->required();
-  app.add_option("--seconds", o.seconds)->check(CLI::Range(0.1, 3600.0));
-  app.add_option("--width", o.width)->check(CLI::Range(16, 8192));
-  app.add_option("--height", o.height)->check(CLI::Range(16, 8192));
-  app.add_option("--render-threads", o.render_threads, "llvmpipe threads (LP_NUM_THREADS)")->check(CLI::Range(1, 64));
-  app.add_option("--render-fps", o.render_fps,
-                 "pace the render loop like a display at this rate (default 60); 0 = as fast as it can")
+};
+
+void add_bench(CLI::App& root, cli::Status* status) {
+  CLI::App* bench = cli::group(root, "bench", "benchmarks (JSON on stdout)");
+  {
+    CLI::App* app = bench->add_subcommand("render", "SET [--width W --height H --frames N] --json");
+    auto a = std::make_shared<RenderArgs>();
+    app->add_option("set", a->o.set, "organ set folder")->required();
+    app->add_option("--width", a->o.width)->check(CLI::Range(16, 8192));
+    app->add_option("--height", a->o.height)->check(CLI::Range(16, 8192));
+    app->add_option("--frames", a->o.frames)->check(CLI::Range(1, 1000000));
+    app->add_flag("--static", a->static_mesh, "do not deform / re-upload the meshes each frame");
+    app->add_flag("--no-ui", a->no_ui, "no labels / ImGui overlay");
+    app->add_flag("--json", a->json, "print JSON (the default output)");
+    cli::on_run(app, status, [a] {
+      RenderBenchOptions o = a->o;
+      o.deform = !a->static_mesh;
+      o.ui = !a->no_ui;
+      std::fputs(bench_render(o).c_str(), stdout);
+      return 0;
+    });
+  }
+  CLI::App* app = bench->add_subcommand("haptic", "SET [--seconds S] --json");
+  auto a = std::make_shared<HapticArgs>();
+  app->add_option("set", a->o.set, "organ set folder")->required();
+  app->add_option("--seconds", a->o.seconds)->check(CLI::Range(0.1, 3600.0));
+  app->add_option("--width", a->o.width)->check(CLI::Range(16, 8192));
+  app->add_option("--height", a->o.height)->check(CLI::Range(16, 8192));
+  app->add_option("--render-threads", a->o.render_threads, "llvmpipe threads (LP_NUM_THREADS)")->check(CLI::Range(1, 64));
+  app->add_option("--render-fps", a->o.render_fps,
+                  "pace the render loop like a display at this rate (default 60); 0 = as fast as it can")
       ->check(CLI::Range(0.0, 1000.0));
-  app.add_flag("--no-realtime", norealtime, "do not ask for SCHED_FIFO");
-  app.add_flag("--json", json, "print JSON (the default output)");
-  if (int rc = parse(app, args, 2)) return rc < 0 ? 0 : rc;
-  o.realtime = !norealtime;
-  std::fputs(bench_haptic(o).c_str(), stdout);
-  return 0;
+  app->add_flag("--no-realtime", a->norealtime, "do not ask for SCHED_FIFO");
+  app->add_flag("--json", a->json, "print JSON (the default output)");
+  cli::on_run(app, status, [a] {
+    HapticBenchOptions o = a->o;
+    o.realtime = !a->norealtime;
+    std::fputs(bench_haptic(o).c_str(), stdout);
+    return 0;
+  });
 }
 
 }  // namespace
 
+void add_commands(CLI::App& root, cli::Status* status) {
+  add_view(root, status);
+  add_lesson(root, status);
+  add_bench(root, status);
+}
+
 int cli_main(const std::vector<std::string>& args) {
-  if (args.empty()) return 2;
-  if (args[0] == "view") return cmd_view(args);
-  if (args[0] == "lesson") return cmd_lesson(args);
-  if (args[0] == "bench" && args.size() > 1 && (args[1] == "render" || args[1] == "haptic")) return cmd_bench(args);
-  std::fprintf(stderr, "softatlas: unknown app command\n");
-  return 2;
+  return cli::run_only(add_commands, args);
 }
 
 }  // namespace softatlas::app

@@ -93,9 +93,11 @@ DeviceScript load_device_script(const std::string& path) {
           const YAML::Node p = t["answer"];
           c.keys(p, "answer", {"choice"});
           a.choice = c.str(c.require(p, "choice", "answer"), "choice");
-        } else {
+        } else if (t["wait"]) {
           a.kind = StepKind::wait;
           if (!t["wait"].IsNull()) c.keys(t["wait"], "wait", {});
+        } else {  // an unknown key, reported above (a zombie node would throw)
+          throw yamlcheck::Skip{};
         }
       });
       d.actions.push_back(std::move(a));

@@ -461,10 +461,10 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         if (ImGui::Button("apply (recompile)")) rebuild = 1;
         ImGui::SameLine();
         if (ImGui::Button("reset")) rebuild = 2;
-        ImGui::TextWrapped("%s", status.c_str());
+        ImGui::TextWrapped("%s", overlay_text(status).c_str());
       }
       if (lesson && ImGui::CollapsingHeader("Lesson", ImGuiTreeNodeFlags_DefaultOpen)) {
-        ImGui::TextWrapped("%s", lesson->title.c_str());
+        ImGui::TextWrapped("%s", overlay_text(lesson->title).c_str());
         if (ImGui::Button("< prev")) goto_step(lesson_step - 1);
         ImGui::SameLine();
         if (ImGui::Button("next >")) goto_step(lesson_step + 1);
@@ -514,9 +514,9 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         ImGui::SetNextWindowSizeConstraints(ImVec2(380, 0), ImVec2(600, 400));
         ImGui::SetNextWindowBgAlpha(0.85f);
         ImGui::Begin("Question", nullptr, ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoCollapse);
-        ImGui::TextWrapped("%s", s->question.ask.c_str());
+        ImGui::TextWrapped("%s", overlay_text(s->question.ask).c_str());
         for (size_t i = 0; i < s->question.choices.size(); ++i) {
-          const std::string b = std::to_string(i + 1) + ")  " + s->question.choices[i];
+          const std::string b = std::to_string(i + 1) + ")  " + overlay_text(s->question.choices[i]);
           if (ImGui::Button(b.c_str())) answer(i);
         }
         ImGui::End();

@@ -285,7 +285,7 @@ Lesson load_lesson(const std::string& path) {
                  "organ '" + names[i] + "' is not in the organ set " + L.organ_set_path + " (it has: " + available + ")");
   };
   if (organs_node) check_in_set(organs_node, L.organs);
-  if (scene && scene["context"]) check_in_set(scene["context"], L.context);
+  if (scene && scene.IsMap() && scene["context"]) check_in_set(scene["context"], L.context);  // scene: 3 is reported above
   for (const std::string& n : L.context)
     if (std::find(L.organs.begin(), L.organs.end(), n) != L.organs.end())
       c.report(scene["context"], "organ '" + n + "' is listed in both organs and context");

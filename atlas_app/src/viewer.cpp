@@ -8,6 +8,13 @@
 
 namespace softatlas::app {
 
+std::string overlay_text(const std::string& text) {
+  if (text.size() <= kOverlayChars) return text;
+  size_t cut = kOverlayChars;
+  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;  // not inside a character
+  return text.substr(0, cut) + "...";
+}
+
 Viewer::Viewer(GlContext& context, const AtlasScene& scene)
     : context_(context), scene_(scene), renderer_(std::make_unique<Renderer>(context)) {
   imgui_ = ImGui::CreateContext();
@@ -110,7 +117,8 @@ void Viewer::end() {
   renderer_->set_depth_test(true);
   // Labels under the ImGui windows (help, panel), over the 3-D view.
   ImDrawList* fg = ImGui::GetBackgroundDrawList();
-  auto label = [&](const Eigen::Vector3f& p, const std::string& text, ImU32 col) {
+  auto label = [&](const Eigen::Vector3f& p, const std::string& full, ImU32 col) {
+    const std::string text = overlay_text(full);
     float x, y;
     if (!camera.project(p, x, y)) return;
     const ImVec2 size = ImGui::CalcTextSize(text.c_str());
@@ -128,7 +136,7 @@ void Viewer::end() {
   std::vector<Tag> tags;
   for (size_t v = 0; v < styles.size(); ++v) {
     if (!styles[v].visible) continue;
-    const std::string text = scene_.display_name(static_cast<int>(v));
+    const std::string text = overlay_text(scene_.display_name(static_cast<int>(v)));
     if (labeled[v]) {
       float x, y;
       if (camera.project(centroids_[v], x, y)) tags.push_back({ImVec2(x, y), ImVec2(x, y), ImGui::CalcTextSize(text.c_str()), text});
@@ -184,13 +192,13 @@ void Viewer::end() {
                      ImGuiWindowFlags_AlwaysAutoResize);
     if (!caption.title.empty()) {
       ImGui::PushStyleColor(ImGuiCol_Text, ImVec4(0.6f, 0.85f, 1.0f, 1.0f));
-      ImGui::TextWrapped("%s", caption.title.c_str());
+      ImGui::TextWrapped("%s", overlay_text(caption.title).c_str());
       ImGui::PopStyleColor();
     }
-    if (!caption.text.empty()) ImGui::TextWrapped("%s", caption.text.c_str());
+    if (!caption.text.empty()) ImGui::TextWrapped("%s", overlay_text(caption.text).c_str());
     if (!caption.status.empty()) {
       ImGui::PushStyleColor(ImGuiCol_Text, caption.ok ? ImVec4(0.4f, 1.0f, 0.4f, 1.0f) : ImVec4(1.0f, 0.45f, 0.4f, 1.0f));
-      ImGui::TextWrapped("%s", caption.status.c_str());
+      ImGui::TextWrapped("%s", overlay_text(caption.status).c_str());
       ImGui::PopStyleColor();
     }
     ImGui::End();

@@ -75,12 +75,15 @@ struct Ctx {
     report(n, what);
     throw Skip{};
   }
-  // Runs f; a fail() inside only abandons f.
+  // Runs f; a fail() inside only abandons f. A yaml-cpp exception (a node of an unexpected kind
+  // read as another) becomes an error at its mark, never an escape (found by fuzz_lesson).
   template <class F>
   void guard(F&& f) const {
     try {
       f();
     } catch (const Skip&) {
+    } catch (const YAML::Exception& e) {
+      report_at(std::max(1, e.mark.line + 1), std::max(1, e.mark.column + 1), "unexpected YAML structure here (" + e.msg + ")");
     }
   }
   // Throws CheckErrors with every recorded error, sorted by line and column (stable).

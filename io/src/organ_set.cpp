@@ -1,5 +1,6 @@
 // atlas.yaml + organs/*.ply + connections.csv (docs/organ-set.md).
 #include "softatlas/io/organ_set.hpp"
+#include "softatlas/io/output_folder.hpp"
 
 #include <yaml-cpp/yaml.h>
 #include <signal.h>
@@ -341,18 +342,7 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
   if (!fs::is_directory(parent, ec)) fs::create_directories(parent, ec);
   const std::string stem = "." + target.filename().string() + ".partial.";
   // Folders left by writers that were killed (SIGKILL, power loss): their process is gone.
-  for (fs::directory_iterator it(parent, ec), end; !ec && it != end; it.increment(ec)) {
-    const std::string name = it->path().filename().string();
-    if (name.rfind(stem, 0) != 0) continue;
-    const std::string pid_text = name.substr(stem.size());
-    char* stop = nullptr;
-    const long pid = std::strtol(pid_text.c_str(), &stop, 10);
-    if (pid_text.empty() || *stop != '\0' || pid <= 0) continue;
-    if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
-      std::error_code rm;
-      fs::remove_all(it->path(), rm);
-    }
-  }
+  remove_stale_partials(parent, stem);
   ec.clear();
   const fs::path tmp = parent / (stem + std::to_string(::getpid()));
   fs::remove_all(tmp, ec);
@@ -405,6 +395,9 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
   } catch (const fs::filesystem_error& e) {
     fs::remove_all(tmp, ec);
     throw InputError(folder, "cannot write the organ set: " + e.code().message());
+  } catch (const InputError& e) {  // a full disk: name the folder asked for, not the hidden one
+    fs::remove_all(tmp, ec);
+    throw InputError("", name_target(e.what(), tmp.string(), target.string()));
   } catch (...) {
     fs::remove_all(tmp, ec);
     throw;

@@ -6,6 +6,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "softatlas/io/cli.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -319,38 +321,18 @@ EvalRun run_draw(const EvalCase& c, uint64_t seed, const SegmentOptions& options
   return r;
 }
 
-int cmd_bench_segment(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas bench segment: seeded segmentation, random seed draws on the shared CTs and stress variants",
-               "softatlas bench segment"};
+namespace {
+struct BenchSegmentArgs {
   std::string data = "../shared/data", write_dir;
   std::vector<std::string> cases = {"slab", "heart_crop", "aorta_crop"}, variants = stress_variants();
   int draws = 10;
   bool as_json = false;
   SegmentOptions options;
-  app.add_option("--data", data, "shared data folder (holds ct/)");
-  app.add_option("--cases", cases, "slab, heart_crop, aorta_crop (comma-separated)")->delimiter(',');
-  app.add_option("--variants", variants, "original, 3mm, unenhanced, noise, unenhanced_3mm")->delimiter(',');
-  app.add_option("--draws", draws, "random draws per case and variant (fixed seeds; default 10)");
-  app.add_option("--write-variants", write_dir,
-                 "write each variant's CT and reference (CASE_VARIANT_ct.nii.gz, _ref.nii.gz) and the seed "
-                 "files of the draws to this folder, then stop");
-  app.add_option("--method", options.method, "graph_cut (default) or growth (the earlier region growing)");
-  app.add_option("--smoothness", options.cut_smoothness_mm, "graph cut: boundary weight, mm");
-  app.add_option("--distance-weight", options.cut_distance_weight, "graph cut: distance prior, nats per radius");
   bool no_tubes = false, no_walls = false;
-  app.add_flag("--no-tubes", no_tubes, "no tube model for the aorta");
-  app.add_flag("--no-walls", no_walls, "no wall model for the heart");
-  app.add_option("--background-model", options.cut_background, "graph cut: image (whole image) or box");
-  app.add_option("--window-weight", options.cut_window_weight, "graph cut: share of the seeds' window");
-  app.add_option("--radius-scale", options.cut_radius_scale, "graph cut: scale of the organs' radius priors");
-  app.add_flag("--json", as_json, "machine-readable result on stdout");
-  std::vector<std::string> rest(args.begin() + 2, args.end());
-  std::reverse(rest.begin(), rest.end());
-  try {
-    app.parse(rest);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
+};
+
+int run_bench_segment(BenchSegmentArgs a) {
+  auto& [data, write_dir, cases, variants, draws, as_json, options, no_tubes, no_walls] = a;
   if (no_tubes) options.tubes.clear();
   if (no_walls) options.walls.clear();
   if (draws < 1) throw InputError("--draws", "expected at least 1 draw");
@@ -426,6 +408,30 @@ int cmd_bench_segment(const std::vector<std::string>& args) {
   if (as_json) std::cout << out.dump(2) << "\n";
   else std::cout << table;
   return 0;
+}
+
+}  // namespace
+
+void add_bench_segment(CLI::App& bench, cli::Status* status) {
+  CLI::App* app = bench.add_subcommand("segment", "seeded segmentation, random seed draws on the shared CTs and stress variants");
+  auto a = std::make_shared<BenchSegmentArgs>();
+  app->add_option("--data", a->data, "shared data folder (holds ct/)");
+  app->add_option("--cases", a->cases, "slab, heart_crop, aorta_crop (comma-separated)")->delimiter(',');
+  app->add_option("--variants", a->variants, "original, 3mm, unenhanced, noise, unenhanced_3mm")->delimiter(',');
+  app->add_option("--draws", a->draws, "random draws per case and variant (fixed seeds; default 10)");
+  app->add_option("--write-variants", a->write_dir,
+                  "write each variant's CT and reference (CASE_VARIANT_ct.nii.gz, _ref.nii.gz) and the seed "
+                  "files of the draws to this folder, then stop");
+  app->add_option("--method", a->options.method, "graph_cut (default) or growth (the earlier region growing)");
+  app->add_option("--smoothness", a->options.cut_smoothness_mm, "graph cut: boundary weight, mm");
+  app->add_option("--distance-weight", a->options.cut_distance_weight, "graph cut: distance prior, nats per radius");
+  app->add_flag("--no-tubes", a->no_tubes, "no tube model for the aorta");
+  app->add_flag("--no-walls", a->no_walls, "no wall model for the heart");
+  app->add_option("--background-model", a->options.cut_background, "graph cut: image (whole image) or box");
+  app->add_option("--window-weight", a->options.cut_window_weight, "graph cut: share of the seeds' window");
+  app->add_option("--radius-scale", a->options.cut_radius_scale, "graph cut: scale of the organs' radius priors");
+  app->add_flag("--json", a->as_json, "machine-readable result on stdout");
+  cli::on_run(app, status, [a] { return run_bench_segment(*a); });
 }
 
 }  // namespace softatlas::pipeline

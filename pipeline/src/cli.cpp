@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "softatlas/io/cli.hpp"
 #include "softatlas/io/cli_number.hpp"
 #include "softatlas/pipeline/bench_segment.hpp"
 #include "softatlas/pipeline/build.hpp"
@@ -65,18 +66,6 @@ std::map<std::string, int> parse_budgets(const std::vector<std::string>& items) 
       out[name] = static_cast<int>(faces);
     }
   return out;
-}
-
-// Runs CLI11 on args (without the leading subcommand words). Returns -1 when parsing succeeded.
-int parse(CLI::App& app, const std::vector<std::string>& args, size_t skip) {
-  std::vector<std::string> rest(args.begin() + static_cast<long>(skip), args.end());
-  std::reverse(rest.begin(), rest.end());  // CLI11 takes the vector back to front
-  try {
-    app.parse(rest);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e);
-  }
-  return -1;
 }
 
 struct BuildCli {
@@ -135,11 +124,7 @@ struct BuildCli {
   }
 };
 
-int cmd_build(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas build: CT (+ labels or seeds) or meshes -> organ set", "softatlas build"};
-  BuildCli cli;
-  cli.add_to(app, true);
-  if (int rc = parse(app, args, 1); rc >= 0) return rc;
+int run_build(const BuildCli& cli) {
   const auto t0 = std::chrono::steady_clock::now();
   const BuildResult r = build_organ_set(cli.options());
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -149,15 +134,12 @@ int cmd_build(const std::vector<std::string>& args) {
   return 0;
 }
 
-int cmd_segment(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas segment: seeded segmentation -> label map (TotalSegmentator ids)", "softatlas segment"};
+struct SegmentArgs {
   std::string ct, seeds, output, reference;
-  app.add_option("ct", ct, "CT volume")->required();
-  app.add_option("--seeds", seeds, "seed points (YAML)")->required();
-  app.add_option("-o,--output", output, "label map to write (.nii or .nii.gz)")->required();
-  app.add_option("--dice", reference,
-                 "reference label map (or NAME=MASK) on the CT grid: print Dice per organ as JSON");
-  if (int rc = parse(app, args, 1); rc >= 0) return rc;
+};
+
+int run_segment(const SegmentArgs& a) {
+  const auto& [ct, seeds, output, reference] = a;
   if (fs::exists(output)) throw InputError(output, "the output file already exists");
   const Volume image = read_volume(ct);
   const Seeds s = read_seeds(seeds);
@@ -184,11 +166,7 @@ int cmd_segment(const std::vector<std::string>& args) {
   return 0;
 }
 
-int cmd_check(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas check: validate an organ set and print its quality report", "softatlas check"};
-  std::string folder;
-  app.add_option("set", folder, "organ-set folder")->required();
-  if (int rc = parse(app, args, 1); rc >= 0) return rc;
+int run_check(const std::string& folder) {
   std::string report;
   const bool ok = check_organ_set(folder, &report);
   std::cout << report;
@@ -199,14 +177,12 @@ int cmd_check(const std::vector<std::string>& args) {
   return 0;
 }
 
-int cmd_export(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas export: organ set -> glTF 2.0 (.glb binary, .gltf JSON + .bin), or a WebXR page (--web)", "softatlas export"};
+struct ExportArgs {
   std::string folder, output, web;
-  app.add_option("set", folder, "organ-set folder")->required();
-  auto* glb = app.add_option("-o,--output", output, "output .glb or .gltf");
-  auto* page = app.add_option("--web", web, "output folder: static WebXR page (docs/web.md)");
-  glb->excludes(page);
-  if (int rc = parse(app, args, 1); rc >= 0) return rc;
+};
+
+int run_export(const ExportArgs& a) {
+  const auto& [folder, output, web] = a;
   if (output.empty() && web.empty()) throw InputError("softatlas export", "expected -o atlas.glb or --web DIR");
   if (!web.empty()) {
     export_web(folder, web, web_dist_folder());
@@ -218,21 +194,16 @@ int cmd_export(const std::vector<std::string>& args) {
   return 0;
 }
 
-int cmd_bench(const std::vector<std::string>& args) {
-  CLI::App app{"softatlas bench pipeline: time the build stage by stage", "softatlas bench pipeline"};
+struct BenchArgs {
   BuildCli cli;
-  cli.add_to(app, false);
   bool as_json = false;
   int repeat = 1;
   std::string name;
-  app.add_flag("--json", as_json, "machine-readable result on stdout");
-  app.add_option("--repeat", repeat, "runs (the fastest is reported)");
-  app.add_option("--name", name, "case name in the report");
   std::vector<int> resample_dims;
-  app.add_option("--resample", resample_dims, "resample CT and labels to NX,NY,NZ first (e.g. 512,512,300)")
-      ->delimiter(',')
-      ->expected(3);
-  if (int rc = parse(app, args, 2); rc >= 0) return rc;
+};
+
+int run_bench(const BenchArgs& a) {
+  const auto& [cli, as_json, repeat, name, resample_dims] = a;
   std::mt19937_64 rng(std::random_device{}());
   BuildOptions base = cli.options();
   const fs::path resample_dir = fs::temp_directory_path() / ("softatlas-resample-" + std::to_string(rng()));
@@ -305,21 +276,70 @@ int cmd_bench(const std::vector<std::string>& args) {
   return 0;
 }
 
+// Registration: each command's options live in a shared state its callback reads.
+void add_build(CLI::App& root, cli::Status* status) {
+  CLI::App* app = root.add_subcommand("build", "CT (+ labels or seeds) or meshes -> organ set");
+  auto a = std::make_shared<BuildCli>();
+  a->add_to(*app, true);
+  cli::on_run(app, status, [a] { return run_build(*a); });
+}
+
+void add_segment(CLI::App& root, cli::Status* status) {
+  CLI::App* app = root.add_subcommand("segment", "seeded segmentation -> label map (TotalSegmentator ids)");
+  auto a = std::make_shared<SegmentArgs>();
+  app->add_option("ct", a->ct, "CT volume")->required();
+  app->add_option("--seeds", a->seeds, "seed points (YAML)")->required();
+  app->add_option("-o,--output", a->output, "label map to write (.nii or .nii.gz)")->required();
+  app->add_option("--dice", a->reference,
+                  "reference label map (or NAME=MASK) on the CT grid: print Dice per organ as JSON");
+  cli::on_run(app, status, [a] { return run_segment(*a); });
+}
+
+void add_check(CLI::App& root, cli::Status* status) {
+  CLI::App* app = root.add_subcommand("check", "validate an organ set and print its quality report");
+  auto folder = std::make_shared<std::string>();
+  app->add_option("set", *folder, "organ-set folder")->required();
+  cli::on_run(app, status, [folder] { return run_check(*folder); });
+}
+
+void add_export(CLI::App& root, cli::Status* status) {
+  CLI::App* app = root.add_subcommand(
+      "export", "organ set -> glTF 2.0 (.glb binary, .gltf JSON + .bin), or a WebXR page (--web)");
+  auto a = std::make_shared<ExportArgs>();
+  app->add_option("set", a->folder, "organ-set folder")->required();
+  auto* glb = app->add_option("-o,--output", a->output, "output .glb or .gltf");
+  auto* page = app->add_option("--web", a->web, "output folder: static WebXR page (docs/web.md)");
+  glb->excludes(page);
+  cli::on_run(app, status, [a] { return run_export(*a); });
+}
+
+void add_bench_pipeline(CLI::App& bench, cli::Status* status) {
+  CLI::App* app = bench.add_subcommand("pipeline", "time the build stage by stage");
+  auto a = std::make_shared<BenchArgs>();
+  a->cli.add_to(*app, false);
+  app->add_flag("--json", a->as_json, "machine-readable result on stdout");
+  app->add_option("--repeat", a->repeat, "runs (the fastest is reported)");
+  app->add_option("--name", a->name, "case name in the report");
+  app->add_option("--resample", a->resample_dims, "resample CT and labels to NX,NY,NZ first (e.g. 512,512,300)")
+      ->delimiter(',')
+      ->expected(3);
+  cli::on_run(app, status, [a] { return run_bench(*a); });
+}
+
 }  // namespace
 
+void add_commands(CLI::App& root, cli::Status* status) {
+  add_build(root, status);
+  add_segment(root, status);
+  add_check(root, status);
+  add_export(root, status);
+  CLI::App* bench = cli::group(root, "bench", "benchmarks (JSON on stdout)");
+  add_bench_pipeline(*bench, status);
+  add_bench_segment(*bench, status);
+}
+
 int cli_main(const std::vector<std::string>& args) {
-  if (args.empty()) throw InputError("softatlas", "expected a subcommand");
-  const std::string& cmd = args[0];
-  if (cmd == "build") return cmd_build(args);
-  if (cmd == "segment") return cmd_segment(args);
-  if (cmd == "check") return cmd_check(args);
-  if (cmd == "export") return cmd_export(args);
-  if (cmd == "bench" && args.size() > 1 && args[1] == "pipeline") return cmd_bench(args);
-  if (cmd == "bench" && args.size() > 1 && args[1] == "segment") return cmd_bench_segment(args);
-  std::fprintf(stderr,
-               "softatlas: '%s' is not a pipeline command (build, segment, check, export, bench pipeline, bench segment)\n",
-               cmd.c_str());
-  return 2;
+  return cli::run_only(add_commands, args);
 }
 
 }  // namespace softatlas::pipeline

@@ -43,11 +43,11 @@ void append(std::vector<uint8_t>& bin, const void* data, size_t bytes) {
   while (bin.size() % 4) bin.push_back(0);  // every view starts 4-byte aligned
 }
 
+// Whole or not at all (temp file + rename): a full disk or a read-only folder leaves nothing.
 void write_file(const std::string& path, const std::string& a, const std::vector<uint8_t>& b = {}) {
-  std::ofstream f(path, std::ios::binary);
-  f.write(a.data(), static_cast<std::streamsize>(a.size()));
-  if (!b.empty()) f.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-  if (!f) throw InputError(path, "cannot write the glTF file");
+  std::string bytes = a;
+  bytes.append(reinterpret_cast<const char*>(b.data()), b.size());
+  io::write_file_atomic(path, bytes);
 }
 
 }  // namespace

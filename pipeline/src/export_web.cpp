@@ -157,7 +157,7 @@ void write_text(const fs::path& path, const std::string& text) {
 
 std::string web_dist_folder() {
   const char* env = std::getenv("SOFTATLAS_WEB_DIST");
-  for (const std::string dir : {std::string(env ? env : ""), std::string(SOFTATLAS_WEB_DIST)})
+  for (const std::string& dir : {std::string(env ? env : ""), std::string(SOFTATLAS_WEB_DIST)})
     if (!dir.empty() && fs::exists(fs::path(dir) / "index.html")) return dir;
   return "";
 }
@@ -180,18 +180,21 @@ void export_web(const std::string& set_folder, const std::string& out_folder, co
   const fs::path tmp = out.string() + ".tmp-web";
   std::error_code ec;
   fs::remove_all(tmp, ec);
-  fs::create_directories(tmp);
   try {
+    fs::create_directories(tmp);
     for (const char* f : kPageFiles) fs::copy_file(fs::path(dist) / f, tmp / f);
     export_gltf(set_folder, (tmp / "atlas.glb").string());
     write_text(tmp / "scene.json", scene_json(set, scene).dump());
     write_text(tmp / "lessons.json", lessons.dump(1));
+    fs::remove_all(out, ec);
+    fs::rename(tmp, out);
+  } catch (const fs::filesystem_error& e) {  // a full disk, a read-only folder: one line, nothing left
+    fs::remove_all(tmp, ec);
+    throw InputError(out_folder, "cannot write the web page: " + e.code().message());
   } catch (...) {
     fs::remove_all(tmp, ec);
     throw;
   }
-  fs::remove_all(out, ec);
-  fs::rename(tmp, out);
 }
 
 }  // namespace softatlas::pipeline

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "softatlas/app/lesson_run.hpp"
+#include "softatlas/app/viewer.hpp"
 #include "test_util.hpp"
 
 namespace softatlas::app {
@@ -52,6 +53,52 @@ TEST_P(LessonRun, PlaysHeadlessAndReports) {
 }
 
 
+
+// A lesson and device script with 100,000-character lines (the title, what the lesson says, a
+// question and its answer) play to the end: overlays cut their text (overlay_text), an ImGui draw
+// list would otherwise pass 65,536 vertices and abort (issue 17).
+TEST(LessonRunLongText, LinesOfAnyLengthPlay) {
+  const std::string dir = test::scratch("long_text");
+  std::filesystem::create_directories(dir);
+  auto slurp = [](const std::string& path) {
+    std::ifstream f(path);
+    return std::string(std::istreambuf_iterator<char>(f), {});
+  };
+  auto replace = [](std::string s, const std::string& from, const std::string& to) {
+    const size_t at = s.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return at == std::string::npos ? s : s.replace(at, from.size(), to);
+  };
+  std::string words;
+  while (words.size() < 100000) words += "word ";
+  const std::string long_choice(100000, 'K');
+  std::string lesson = slurp(test::lessons_dir() + "/kidney_sections.yaml");
+  lesson = replace(lesson, "organ_set: ../atlas", "organ_set: " + test::atlas_dir());
+  lesson = replace(lesson, "lesson: \"Kidneys: retroperitoneal, seen in a coronal cut\"", "lesson: \"" + words + "\"");
+  lesson = replace(lesson, "ask: \"Which of these organs is retroperitoneal?\"", "ask: \"" + words + "\"");
+  lesson = replace(lesson, "choices: [Liver, Stomach, Kidney]", "choices: [Liver, Stomach, " + long_choice + "]");
+  lesson = replace(lesson, "answer: Kidney", "answer: " + long_choice);
+  std::string script = slurp(test::lessons_dir() + "/scripts/kidney_sections.pass.yaml");
+  script = replace(script, "choice: Kidney}", "choice: " + long_choice + "}");
+  std::ofstream(dir + "/long.yaml") << lesson;
+  std::ofstream(dir + "/long.pass.yaml") << script;
+  RunOptions opt;
+  opt.width = 320;
+  opt.height = 180;
+  const LessonReport r = run_lesson(load_lesson(dir + "/long.yaml"), load_device_script(dir + "/long.pass.yaml"),
+                                    dir + "/out", opt);
+  EXPECT_TRUE(r.passed);
+  EXPECT_TRUE(std::filesystem::exists(dir + "/out/end.png"));
+}
+
+TEST(LessonRunLongText, OverlayTextIsCutAtACharacterBoundary) {
+  EXPECT_EQ(overlay_text("short"), "short");
+  std::string s(kOverlayChars - 1, 'a');
+  s += "\xc3\xa9\xc3\xa9";  // two 2-byte characters across the limit
+  const std::string cut = overlay_text(s);
+  EXPECT_EQ(cut, std::string(kOverlayChars - 1, 'a') + "...");
+  EXPECT_LE(overlay_text(std::string(1000000, 'x')).size(), kOverlayChars + 3);
+}
 
 INSTANTIATE_TEST_SUITE_P(
     Shipped, LessonRun,

@@ -10,6 +10,7 @@
 
 #include "softatlas/evidence/evidence.hpp"
 #include "softatlas/evidence/svg.hpp"
+#include "softatlas/io/mesh_io.hpp"
 #include "softatlas/sim/error.hpp"
 #include "trajectory.hpp"
 
@@ -204,15 +205,7 @@ std::string metric_plot(const json& runs, const std::string& metric, const std::
 }  // namespace
 
 void write_file_atomic(const std::string& path, const std::string& content) {
-  const std::filesystem::path target(path);
-  const std::filesystem::path tmp = target.parent_path() / ("." + target.filename().string() + ".tmp");
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    if (!out) throw InputError(tmp.string(), "cannot write (is the output folder writable?)");
-    out << content;
-    if (!out) throw InputError(tmp.string(), "write failed");
-  }
-  std::filesystem::rename(tmp, target);
+  io::write_file_atomic(path, content);  // the project's one atomic writer
 }
 
 TriMesh load_liver(const std::string& data_dir) {

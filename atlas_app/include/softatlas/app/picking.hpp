@@ -34,7 +34,7 @@ class PickBvh {
 
  private:
   struct Node {
-    Eigen::Vector3f lo, hi;
+    Eigen::Vector3f lo = Eigen::Vector3f::Zero(), hi = Eigen::Vector3f::Zero();
     int32_t left = -1, right = -1;  // children; -1 for a leaf
     int32_t begin = 0, end = 0;     // leaf: range in order_
   };

@@ -17,6 +17,12 @@ struct ImGuiContext;
 
 namespace softatlas::app {
 
+// Text as an overlay shows it (captions, labels, questions, the end screen): at most
+// kOverlayChars bytes, cut at a UTF-8 character boundary with "..." appended. An ImGui draw list
+// holds 65,536 vertices (4 per glyph): a 100,000-character line aborted `lesson run` (issue 17).
+constexpr size_t kOverlayChars = 3000;
+std::string overlay_text(const std::string& text);
+
 struct Caption {
   std::string title;    // lesson / step name
   std::string text;     // what the lesson says

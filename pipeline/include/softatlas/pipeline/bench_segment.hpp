@@ -11,6 +11,13 @@
 #include "softatlas/pipeline/segment.hpp"
 #include "softatlas/pipeline/volume.hpp"
 
+namespace CLI {
+class App;
+}
+namespace softatlas::cli {
+struct Status;
+}
+
 namespace softatlas::pipeline {
 
 struct EvalOrgan {
@@ -63,7 +70,7 @@ Volume masks_on_grid(const Volume& grid, const std::vector<std::pair<std::string
 Volume resample(const Volume& v, const std::array<int, 3>& to, bool nearest);
 
 // `softatlas bench segment [--data DIR] [--cases a,b] [--variants a,b] [--draws N] [--json]
-//  [--write-variants DIR]`
-int cmd_bench_segment(const std::vector<std::string>& args);
+//  [--write-variants DIR]`: registered on the `bench` group of the one command line.
+void add_bench_segment(CLI::App& bench, cli::Status* status);
 
 }  // namespace softatlas::pipeline
