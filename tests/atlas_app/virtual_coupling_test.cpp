@@ -326,5 +326,69 @@ TEST(VirtualCoupling, ProbePressedIntoTheLiverPushesBackMoreTheDeeperItGoes) {
   EXPECT_EQ(cmd.contact_id, id + 1);
 }
 
+// Palpation closed loop on the solid liver: the probe tip goes 2, 4, 6, 8 mm below the surface
+// at the liver's inferior vertex (scripted device, 1 kHz ticks, a physics step every 8), holds,
+// and the force along the outward normal grows with depth; the proxy stays outside the tip.
+TEST(VirtualCoupling, ProbePressedIntoTheSolidLiverPushesBackMoreTheDeeperItGoes) {
+  const io::OrganSet set = io::read_organ_set(test::atlas_dir());
+  PhysicsSettings ps;
+  ps.model = "solid";
+  AtlasScene scene(set, {"liver"}, {}, ps);
+  const int v = scene.view_index("liver");
+  const auto front = scene.global_vertices(v, scene.region_vertices(v, "inferior", 0.0));
+  ASSERT_EQ(front.size(), 1u);
+  const size_t g = static_cast<size_t>(front[0]);
+  const Vec3d surf{scene.state.x[g], scene.state.y[g], scene.state.z[g]};
+  CouplingPhysics physics(scene.model);
+  physics.probe(surf);
+  // the outward normal there, from one physics step's published surface
+  {
+    ToolCommand free_cmd;
+    free_cmd.engaged = true;
+    physics.apply(scene.model, scene.state, free_cmd);
+  }
+  sim::step(scene.model, scene.state, scene.work);
+  const LocalModel first = physics.local_model(scene.model, scene.state, scene.work);
+  ASSERT_TRUE(first.surface);
+  double Kn = 0;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) Kn += first.normal[r] * first.K_N_m[3 * r + c] * first.normal[c];
+  EXPECT_GT(Kn, 1.0) << "the solid under the patch resists pressing before the touch";
+  const Vec3d n = first.normal;
+  std::vector<Keyframe> keys;  // 3 mm outside, then 2 mm deeper every 0.6 s (0.2 s ramps)
+  keys.push_back({0.0, {3e-3 * n[0], 3e-3 * n[1], 3e-3 * n[2]}});
+  for (int k = 1; k <= 4; ++k) {
+    const double d = 2e-3 * k, t = 0.6 * k;
+    keys.push_back({t - 0.4, {-(d - 2e-3) * n[0], -(d - 2e-3) * n[1], -(d - 2e-3) * n[2]}});
+    keys.push_back({t - 0.2, {-d * n[0], -d * n[1], -d * n[2]}});
+    keys.push_back({t, {-d * n[0], -d * n[1], -d * n[2]}});
+  }
+  ScriptedDevice device(keys, false, 4.0);
+  HapticLoop loop(device, ForceShaper{4.0, 0.02}, 2500, 1000.0, true);
+  loop.publish(first);
+  double last = 0.0;
+  for (int k = 0; k <= 2400; ++k) {
+    if (k % 8 == 0 && k > 0) {
+      ToolCommand cmd;
+      if (loop.latest_command(cmd)) physics.apply(scene.model, scene.state, cmd);
+      sim::step(scene.model, scene.state, scene.work);
+      loop.publish(physics.local_model(scene.model, scene.state, scene.work));
+    }
+    const Vec3d f = loop.tick(k * 1e-3);
+    ASSERT_TRUE(std::isfinite(f[0] + f[1] + f[2])) << "tick " << k;
+    if (k % 600 == 0 && k > 0) {  // end of a hold
+      ToolCommand cmd;
+      loop.latest_command(cmd);
+      ASSERT_TRUE(cmd.contact) << "in contact at " << k / 300 << " mm";
+      const double push = dot(f, n);
+      EXPECT_GT(push, last + 1e-3) << "deeper pushes back more, at " << k / 300 << " mm";
+      const Vec3d rel{cmd.proxy_m[0] - cmd.offset_m[0], cmd.proxy_m[1] - cmd.offset_m[1], cmd.proxy_m[2] - cmd.offset_m[2]};
+      EXPECT_GT(dot(rel, n), 0.0) << "the proxy stays outside the tip";
+      last = push;
+    }
+  }
+  EXPECT_GT(last, 0.01);
+}
+
 }  // namespace
 }  // namespace softatlas::app
