@@ -86,6 +86,7 @@ struct SolidWork {
   std::vector<double> rhs;         // #nnode * 3
   std::vector<double> sol;         // #nnode * 3 (column-major scratch for the solver)
   std::vector<double> quat;        // #ntet * 4 warm start of the rotation fits (w, x, y, z)
+  std::vector<double> rot;         // #ntet * 9 its rotation matrix (column-major)
   std::vector<double> f_prev;      // #ntet * 9 deformation gradient at the start of the step
   std::vector<double> r_prev;      // #ntet * 9 its rotation
   std::vector<double> fext;        // #nnode * 3 external nodal forces of this step
@@ -93,6 +94,11 @@ struct SolidWork {
   // Cholesky factor of S = C Z (k x k), multipliers (k * 3)
   std::vector<int32_t> grasp_verts;
   std::vector<double> grasp_z, grasp_chol, grasp_lambda, grasp_target, grasp_rhs;
+  // this step: awake, held vertices of the tool (0: none); results of the organ's solve
+  int thread = 0;                  // worker thread that solves this organ
+  bool active = false;
+  int32_t grasp_active = 0;
+  double out_reaction[3] = {0, 0, 0}, out_max_speed2 = 0.0, out_checksum = 0.0;
 };
 
 // Builds every organ whose material model is solid (after the rest of compile()).
