@@ -5,8 +5,10 @@
 //   constraint energy                   Bouaziz et al. 2014 eq 9: w/2 |G_e x - p_e|^2, p_e the
 //                                       projection of the element's F onto its constraint set
 //   strain (corotational, shear part)   p = R, w = 2 mu V      (mu |F - R|^2)
-//   volume (corotational, trace part)   p = F - (tr(R^T F) - 3)/3 R, w = 3 lambda V
-//                                       (lambda/2 (tr(R^T F) - 3)^2; Mueller & Gross 2004)
+//   volume                              p = F + t R, det(R^T F + t I) = 1, w = 3 lambda V
+//                                       (3 lambda/2 t^2; to first order Mueller & Gross 2004's
+//                                       lambda/2 (tr(R^T F) - 3)^2)
+//   connection springs                  Liu et al. 2013 spring projection, other end held
 //   Rayleigh damping beta K, rotated    p = F_n + R - R_n, w = beta/h 2 mu V
 //   global step                         Bouaziz et al. 2014 eq 12:
 //     (M/h^2 + sum_e w_e G_e^T G_e) x = M s/h^2 + sum_e w_e G_e^T p_e + f_ext
