@@ -5,8 +5,10 @@
 //   constraint energy                   Bouaziz et al. 2014 eq 9: w/2 |G_e x - p_e|^2, p_e the
 //                                       projection of the element's F onto its constraint set
 //   strain (corotational, shear part)   p = R, w = 2 mu V      (mu |F - R|^2)
-//   volume (corotational, trace part)   p = F - (tr(R^T F) - 3)/3 R, w = 3 lambda V
-//                                       (lambda/2 (tr(R^T F) - 3)^2; Mueller & Gross 2004)
+//   volume                              p = F + t R, det(R^T F + t I) = 1, w = 3 lambda V
+//                                       (3 lambda/2 t^2; to first order Mueller & Gross 2004's
+//                                       lambda/2 (tr(R^T F) - 3)^2)
+//   connection springs                  Liu et al. 2013 spring projection, other end held
 //   Rayleigh damping beta K, rotated    p = F_n + R - R_n, w = beta/h 2 mu V
 //   global step                         Bouaziz et al. 2014 eq 12:
 //     (M/h^2 + sum_e w_e G_e^T G_e) x = M s/h^2 + sum_e w_e G_e^T p_e + f_ext
@@ -21,6 +23,7 @@
 #include <Eigen/SparseCholesky>
 
 #include "engine.hpp"
+#include "workers.hpp"
 #include "softatlas/sim/error.hpp"
 #include "softatlas/sim/sim.hpp"
 #include "softatlas/sim/solid.hpp"
@@ -34,9 +37,11 @@ using Mat3 = Eigen::Matrix3d;
 using ColMatX3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
 
 constexpr int kDefaultNodes = 300;       // lattice nodes per organ when the material gives none
-constexpr int kDefaultIterations = 6;    // local/global iterations per step
+constexpr int kDefaultIterations = 4;    // local/global iterations per step (docs/physics.md)
 constexpr double kDefaultDampingRatio = 0.5;  // Rayleigh ratio at the lowest shear mode
-constexpr int kRotationIterations = 2;   // warm-started rotation-fit iterations per local step
+constexpr int kRotationIterations = 1;   // warm-started rotation-fit iterations per local step
+constexpr int kSceneNodes = 1500;       // lattice nodes of all solid organs of a scene together
+constexpr int kMinNodes = 80;           // the smallest organ's lattice when the scene total shares
 
 Mat3 quat_matrix(const double* q) {
   const double w = q[0], x = q[1], y = q[2], z = q[3];
@@ -48,11 +53,12 @@ Mat3 quat_matrix(const double* q) {
 }
 
 // Rotation of F by the iteration of Mueller et al. 2016 ("A robust method to extract the
-// rotational part of deformations", Algorithm 1), starting from the unit quaternion q (w, x, y,
-// z) and leaving the result there. The quaternion exponential of small steps (|omega| < 0.1) by
-// its Taylor series (error < 1e-10), without sin/cos.
-Mat3 rotation_fit(const Mat3& A, double* q, int iterations) {
-  Mat3 R = quat_matrix(q);
+// rotational part of deformations", Algorithm 1), warm-started from the unit quaternion q (w, x,
+// y, z) and its matrix R (kept beside it, so that no iteration rebuilds it), both updated. The
+// quaternion exponential of small steps (|omega| < 0.1) by its Taylor series (error < 1e-10),
+// without sin/cos.
+void rotation_fit(const Mat3& A, double* q, double* Rm, int iterations) {
+  Eigen::Map<Mat3> R(Rm);
   for (int it = 0; it < iterations; ++it) {
     const Eigen::Vector3d omega =
         (R.col(0).cross(A.col(0)) + R.col(1).cross(A.col(1)) + R.col(2).cross(A.col(2))) *
@@ -61,8 +67,8 @@ Mat3 rotation_fit(const Mat3& A, double* q, int iterations) {
     if (w2 < 1e-24) break;
     double c, sw;  // cos(w/2), sin(w/2)/w
     if (w2 < 0.01) {
-      c = 1.0 - w2 / 8.0 + w2 * w2 / 384.0;
-      sw = 0.5 - w2 / 48.0 + w2 * w2 / 3840.0;
+      c = 1.0 - w2 * (1.0 / 8.0) + w2 * w2 * (1.0 / 384.0);  // constants folded: no divisions
+      sw = 0.5 - w2 * (1.0 / 48.0) + w2 * w2 * (1.0 / 3840.0);
     } else {
       const double w = std::sqrt(w2);
       c = std::cos(0.5 * w), sw = std::sin(0.5 * w) / w;
@@ -74,7 +80,27 @@ Mat3 rotation_fit(const Mat3& A, double* q, int iterations) {
     for (int k = 0; k < 4; ++k) q[k] = nq[k] * inv;
     R = quat_matrix(q);
   }
-  return R;
+}
+
+// The volume constraint's projection p = F + t R = R (S + t I), S = R^T F: the shift t along the
+// identity with det(S + t I) = 1 (volume kept exactly, not only to first order as the trace
+// form tr(S + t I) = 3 of Mueller & Gross 2004 does: a 30 % stretch at constant trace loses 6 %
+// of the volume). Newton on the cubic from the trace form's t = (3 - tr S) / 3, which it equals to
+// first order; falls back to it when Newton leaves |t| < 0.5.
+double volume_shift(const Mat3& S) {
+  // det(S + t I) = t^3 + c2 t^2 + c1 t + c0: c2 = tr S, c1 = sum of principal 2x2 minors, c0 = det S
+  const double c2 = S.trace();
+  const double c1 = S(1, 1) * S(2, 2) - S(1, 2) * S(2, 1) + S(0, 0) * S(2, 2) - S(0, 2) * S(2, 0) +
+                    S(0, 0) * S(1, 1) - S(0, 1) * S(1, 0);
+  const double c0 = S.determinant() - 1.0;
+  const double t0 = (3.0 - c2) * (1.0 / 3.0);
+  double t = t0;
+  for (int it = 0; it < 3; ++it) {
+    const double f = ((t + c2) * t + c1) * t + c0, df = (3.0 * t + 2.0 * c2) * t + c1;
+    if (!(df > 1e-3)) return t0;
+    t -= f / df;
+  }
+  return std::fabs(t) < 0.5 ? t : t0;
 }
 
 // F = sum_i x_i g_i^T of tetrahedron t at positions x (#nnode*3 row-major).
@@ -154,10 +180,19 @@ void compile_solids(const SceneDesc& scene, Model& m) {
   m.organ_solid.assign(norg, -1);
   int32_t node_total = 0;
   const double h = m.dt_s;
+  // Node budgets: the scene's kSceneNodes shared by volume (one cell size for every organ), each
+  // organ between kMinNodes and kDefaultNodes; a material's solid_nodes overrides its share.
+  double solid_volume = 0.0;
+  for (const OrganRange& r : m.organs)
+    if (r.model == ModelKind::solid) solid_volume += std::fabs(r.rest_volume_m3);
   for (int32_t o = 0; o < norg; ++o) {
     const OrganRange& r = m.organs[o];
     if (r.model != ModelKind::solid) continue;
     const Material& mat = scene.organs[r.source_index].material;
+    const double share = solid_volume > 0 ? std::fabs(r.rest_volume_m3) / solid_volume : 1.0;
+    const int budget = mat.solid_nodes > 0 ? mat.solid_nodes
+                                           : std::clamp(static_cast<int>(std::lround(kSceneNodes * share)), kMinNodes,
+                                                        kDefaultNodes);
     // the surface passes do not apply: the lattice carries the organ
     m.organs[o].volume_stiffness = 0.0, m.organs[o].compensation_iterations = 0;
     m.organs[o].curvature = false, m.organs[o].damping = false;
@@ -178,7 +213,7 @@ void compile_solids(const SceneDesc& scene, Model& m) {
              V[3 * v + 2] = m.vert_rest_z[r.vert_begin + v];
     std::vector<int32_t> F(m.face_vert.begin() + 3 * r.face_begin, m.face_vert.begin() + 3 * r.face_end);
     for (int32_t& f : F) f -= r.vert_begin;
-    const SolidLattice L = solid_lattice_budget(V, F, mat.solid_nodes > 0 ? mat.solid_nodes : kDefaultNodes);
+    const SolidLattice L = solid_lattice_budget(V, F, budget);
 
     SolidBody b;
     b.organ = o;
@@ -260,6 +295,18 @@ void compile_solids(const SceneDesc& scene, Model& m) {
         for (int c = 0; c < 3; ++c) factor->base_rhs[c * b.nnode + n[i]] += b.anchor_weight * bw[i] * V[3 * v + c];
       }
     }
+    // Connection springs to other organs, implicit on this organ's side (the other end held at
+    // its start-of-step state, organs coupled Jacobi-style): (k + d/h) w w^T per endpoint. Explicit
+    // forces were unstable above dt = 2 ms on CT-built sets (50 N/m on light organs).
+    for (int32_t q = 0; q < m.nconn; ++q)
+      for (const int32_t end : {m.conn_a[q], m.conn_b[q]}) {
+        if (m.vert_organ[end] != o || b.embed_tet[end - r.vert_begin] < 0) continue;
+        const int32_t* n = &b.tets[4 * b.embed_tet[end - r.vert_begin]];
+        const double* bw = &b.embed_w[4 * (end - r.vert_begin)];
+        const double kc = m.conn_k[q] + m.conn_d[q] / h;
+        for (int i = 0; i < 4; ++i)
+          for (int j = 0; j < 4; ++j) T.emplace_back(n[i], n[j], kc * bw[i] * bw[j]);
+      }
     Eigen::SparseMatrix<double> A(b.nnode, b.nnode);
     A.setFromTriplets(T.begin(), T.end());
     factor->ldlt.compute(A);
@@ -302,9 +349,25 @@ std::vector<SolidWork> make_solid_work(const Model& m) {
     const size_t n3 = 3 * static_cast<size_t>(b.nnode);
     w.q.assign(n3, 0.0), w.s.assign(n3, 0.0), w.rhs.assign(n3, 0.0), w.sol.assign(n3, 0.0), w.fext.assign(n3, 0.0);
     w.quat.assign(4 * static_cast<size_t>(b.ntet), 0.0);
-    for (int32_t t = 0; t < b.ntet; ++t) w.quat[4 * t] = 1.0;
+    w.rot.assign(9 * static_cast<size_t>(b.ntet), 0.0);
+    for (int32_t t = 0; t < b.ntet; ++t) {
+      w.quat[4 * t] = 1.0;
+      w.rot[9 * t] = w.rot[9 * t + 4] = w.rot[9 * t + 8] = 1.0;
+    }
     w.f_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
     w.r_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
+  }
+  // Organs to the step's worker threads (make_work() starts min(threads, organs) of them when
+  // there are two or more): largest lattice first onto the least loaded, by tetrahedra.
+  const int threads = std::max(1, std::min<int>(m.threads, static_cast<int>(m.organs.size())));
+  std::vector<size_t> order(out.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return m.solids[a].ntet > m.solids[b].ntet; });
+  std::vector<int64_t> load(threads, 0);
+  for (size_t i : order) {
+    const int t = static_cast<int>(std::min_element(load.begin(), load.end()) - load.begin());
+    out[i].thread = t;
+    load[t] += m.solids[i].ntet;
   }
   return out;
 }
@@ -366,51 +429,166 @@ void prepare_grasp(const SolidBody& b, SolidWork& w, const std::vector<int32_t>&
   w.grasp_rhs.assign(3 * static_cast<size_t>(k), 0.0);
 }
 
+// One awake solid organ's step from its loads (w.fext, the grasp targets): local/global
+// iterations, velocities, the surface vertices. Touches only this organ's nodes, vertices and
+// scratch, so organs run in parallel.
+void solve_body(const Model& m, const SolidBody& b, SolidWork& w, State& s) {
+  const double h = m.dt_s;
+  const OrganRange& r = m.organs[b.organ];
+  double* X = s.solid_x.data() + 3 * static_cast<size_t>(b.node_begin);
+  double* Vn = s.solid_v.data() + 3 * static_cast<size_t>(b.node_begin);
+  const size_t n3 = 3 * static_cast<size_t>(b.nnode);
+  const int32_t k = w.grasp_active;
+  w.out_reaction[0] = w.out_reaction[1] = w.out_reaction[2] = 0.0;
+  w.out_max_speed2 = 0.0;
+
+  // Inertial prediction; deformation and rotation at the start of the step (the rotation
+  // warm-started from the last local step's, one fit iteration).
+  for (size_t i = 0; i < n3; ++i) w.s[i] = X[i] + h * Vn[i], w.q[i] = w.s[i];
+  for (int32_t t = 0; t < b.ntet; ++t) {
+    const Mat3 F = deformation(b, t, X);
+    rotation_fit(F, &w.quat[4 * t], &w.rot[9 * t], kRotationIterations);
+    Eigen::Map<Mat3>(&w.f_prev[9 * t]) = F;
+    std::copy(&w.rot[9 * t], &w.rot[9 * t] + 9, &w.r_prev[9 * t]);
+  }
+  const double inv_h2 = 1.0 / (h * h);
+  Eigen::Map<ColMatX3> sol(w.sol.data(), b.nnode, 3);
+  const Eigen::Map<const Eigen::MatrixXd> Z(w.grasp_z.data(), b.nnode, k);
+  const Eigen::Map<const Eigen::MatrixXd> Lc(w.grasp_chol.data(), k, k);
+  for (int it = 0; it < b.iterations; ++it) {
+    // local step: the constraint projections, summed into the right-hand side (column-major)
+    for (int32_t i = 0; i < b.nnode; ++i)
+      for (int c = 0; c < 3; ++c)
+        w.sol[c * b.nnode + i] = b.factor->base_rhs[c * b.nnode + i] + b.mass[i] * inv_h2 * w.s[3 * i + c] + w.fext[3 * i + c];
+    for (int32_t t = 0; t < b.ntet; ++t) {
+      const Mat3 F = deformation(b, t, w.q.data());
+      rotation_fit(F, &w.quat[4 * t], &w.rot[9 * t], kRotationIterations);
+      const Eigen::Map<const Mat3> R(&w.rot[9 * t]);
+      const double tv = volume_shift(R.transpose() * F);
+      const double wd = b.w_strain[t] * b.beta_s / h;
+      const Mat3 Y = b.w_strain[t] * R + b.w_volume[t] * (F + tv * R) +
+                     wd * (Eigen::Map<const Mat3>(&w.f_prev[9 * t]) + R - Eigen::Map<const Mat3>(&w.r_prev[9 * t]));
+      const int32_t* n = &b.tets[4 * t];
+      const double* g = &b.grad[12 * t];
+      for (int i = 0; i < 4; ++i) {
+        const Eigen::Vector3d y = Y * Eigen::Vector3d(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
+        for (int c = 0; c < 3; ++c) w.sol[c * b.nnode + n[i]] += y[c];
+      }
+    }
+    // global step: one prefactored solve, then the held vertices' exact constraints
+    sol = b.factor->ldlt.solve(sol);
+    if (k > 0) {
+      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> res(w.grasp_rhs.data(), k, 3);
+      for (int32_t j = 0; j < k; ++j) {
+        const int32_t v = w.grasp_verts[j];
+        const int32_t* n = &b.tets[4 * b.embed_tet[v]];
+        for (int c = 0; c < 3; ++c) {
+          double p = 0.0;
+          for (int i = 0; i < 4; ++i) p += b.embed_w[4 * v + i] * sol(n[i], c);
+          res(j, c) = w.grasp_target[3 * j + c] - p;
+        }
+      }
+      const Eigen::Matrix<double, Eigen::Dynamic, 3> lam =
+          Lc.transpose().triangularView<Eigen::Upper>().solve(Lc.triangularView<Eigen::Lower>().solve(res));
+      sol.noalias() += Z * lam;
+      if (it + 1 == b.iterations)
+        for (int32_t j = 0; j < k; ++j)
+          for (int c = 0; c < 3; ++c) w.grasp_lambda[3 * j + c] = lam(j, c), w.out_reaction[c] -= lam(j, c);
+    }
+    for (int32_t i = 0; i < b.nnode; ++i)
+      for (int c = 0; c < 3; ++c) w.q[3 * i + c] = sol(i, c);
+  }
+  double checksum = 0.0;
+  for (size_t i = 0; i < n3; ++i) {
+    Vn[i] = (w.q[i] - X[i]) / h;
+    X[i] = w.q[i];
+    checksum += X[i] + Vn[i];
+  }
+  if (!std::isfinite(checksum)) {  // cannot happen with finite input; keep the state usable
+    std::copy(b.rest.begin(), b.rest.end(), X);
+    std::fill(Vn, Vn + n3, 0.0);
+    for (int32_t t = 0; t < b.ntet; ++t) {
+      w.quat[4 * t] = 1, w.quat[4 * t + 1] = w.quat[4 * t + 2] = w.quat[4 * t + 3] = 0;
+      Eigen::Map<Mat3>(&w.rot[9 * t]).setIdentity();
+    }
+    w.grasp_verts.clear();
+  }
+  w.out_checksum = checksum;
+  // Surface vertices follow the lattice.
+  for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
+    const int32_t t = b.embed_tet[v - r.vert_begin];
+    if (t < 0) continue;
+    const int32_t* n = &b.tets[4 * t];
+    const double* bw = &b.embed_w[4 * (v - r.vert_begin)];
+    double p[3] = {0, 0, 0}, u[3] = {0, 0, 0};
+    for (int i = 0; i < 4; ++i)
+      for (int c = 0; c < 3; ++c) p[c] += bw[i] * X[3 * n[i] + c], u[c] += bw[i] * Vn[3 * n[i] + c];
+    s.x[v] = p[0], s.y[v] = p[1], s.z[v] = p[2];
+    s.vx[v] = u[0], s.vy[v] = u[1], s.vz[v] = u[2];
+    w.out_max_speed2 = std::max(w.out_max_speed2, u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+  }
+}
+
+struct SolveJob {
+  const Model* m;
+  State* s;
+  Work* work;
+};
+
+void solve_job(void* context, int thread) {
+  const SolveJob& j = *static_cast<const SolveJob*>(context);
+  for (size_t bi = 0; bi < j.m->solids.size(); ++bi) {
+    SolidWork& w = j.work->solid[bi];
+    if (w.thread == thread && w.active) solve_body(*j.m, j.m->solids[bi], w, *j.s);
+  }
+}
+
 }  // namespace
 
 SolidStats solid_step(const Model& m, State& s, Work& work) {
   SolidStats st;
   if (m.solids.empty()) return st;
-  const double h = m.dt_s;
   ToolState& tool = s.tool;
   std::array<double, 3> reaction{0, 0, 0};
   if (tool.mode == ToolMode::attach && !tool.verts.empty()) engine::attach_targets(m, s, work, 1.0);  // tool.cpp
+  // Loads of every organ at the start-of-step positions (connection springs read both organs'
+  // positions, so all loads are gathered before any organ moves).
   for (size_t bi = 0; bi < m.solids.size(); ++bi) {
     const SolidBody& b = m.solids[bi];
     SolidWork& w = work.solid[bi];
     const OrganRange& r = m.organs[b.organ];
-    double* X = s.solid_x.data() + 3 * static_cast<size_t>(b.node_begin);
-    double* Vn = s.solid_v.data() + 3 * static_cast<size_t>(b.node_begin);
-    const size_t n3 = 3 * static_cast<size_t>(b.nnode);
-    if (!s.organ_awake[b.organ]) {
-      std::fill(Vn, Vn + n3, 0.0);
+    w.active = s.organ_awake[b.organ] != 0;
+    w.grasp_active = 0;
+    if (!w.active) {  // asleep: no work
+      double* Vn = s.solid_v.data() + 3 * static_cast<size_t>(b.node_begin);
+      std::fill(Vn, Vn + 3 * static_cast<size_t>(b.nnode), 0.0);
       continue;
     }
-    // External loads of this step, at the current positions.
     std::fill(w.fext.begin(), w.fext.end(), 0.0);
     if (m.gravity)
       for (int32_t i = 0; i < b.nnode; ++i)
         for (int c = 0; c < 3; ++c) w.fext[3 * i + c] += b.mass[i] * m.gravity_m_s2[c];
+    // Connection springs, the implicit half (the matrix holds (k + d/h) w w^T): the endpoint is
+    // drawn to p = x_other - l0 u (Liu et al. 2013's spring projection, u at the start of the
+    // step) with stiffness k, and to x_n + h v_other with d/h (damping of the relative velocity).
     for (int32_t q = 0; q < m.nconn; ++q) {
       const int32_t a = m.conn_a[q], c = m.conn_b[q];
-      const bool in_a = m.vert_organ[a] == b.organ, in_c = m.vert_organ[c] == b.organ;
-      if (!in_a && !in_c) continue;
-      double pa[3], ua[3], pc[3], uc[3];
-      vertex_state(m, s, a, pa, ua);
-      vertex_state(m, s, c, pc, uc);
-      const double d[3] = {pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]};
-      const double l = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-      if (!(l > 0)) continue;
-      const double u[3] = {d[0] / l, d[1] / l, d[2] / l};
-      const double rel = (uc[0] - ua[0]) * u[0] + (uc[1] - ua[1]) * u[1] + (uc[2] - ua[2]) * u[2];
-      const double mag = m.conn_k[q] * (l - m.conn_rest[q]) + m.conn_d[q] * rel;  // pulls a towards c
-      const double fa[3] = {mag * u[0], mag * u[1], mag * u[2]};
-      const double fc[3] = {-fa[0], -fa[1], -fa[2]};
-      if (in_a) spread(b, a - r.vert_begin, fa, w.fext);
-      if (in_c) spread(b, c - r.vert_begin, fc, w.fext);
+      for (int side = 0; side < 2; ++side) {
+        const int32_t self = side == 0 ? a : c, other = side == 0 ? c : a;
+        if (m.vert_organ[self] != b.organ) continue;
+        double ps[3], us[3], po[3], uo[3];
+        vertex_state(m, s, self, ps, us);
+        vertex_state(m, s, other, po, uo);
+        const double d[3] = {ps[0] - po[0], ps[1] - po[1], ps[2] - po[2]};
+        const double l = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        const double sc = l > 0 ? m.conn_rest[q] / l : 0.0;
+        const double kd = m.conn_d[q] / m.dt_s;
+        double f[3];
+        for (int k = 0; k < 3; ++k) f[k] = m.conn_k[q] * (po[k] + sc * d[k]) + kd * (ps[k] + m.dt_s * uo[k]);
+        spread(b, self - r.vert_begin, f, w.fext);
+      }
     }
     bool holds = false;
-    int32_t k = 0;
     if (tool.mode == ToolMode::force && !tool.verts.empty()) {
       double Fv[3] = {tool.force_N[0], tool.force_N[1], tool.force_N[2]};
       const double mag = std::sqrt(Fv[0] * Fv[0] + Fv[1] * Fv[1] + Fv[2] * Fv[2]);
@@ -440,100 +618,32 @@ SolidStats solid_step(const Model& m, State& s, Work& work) {
           if (m.vert_organ[v] == b.organ) local.push_back(v - r.vert_begin);
         prepare_grasp(b, w, local);
       }
-      k = count;
-      if (k > 0) {
+      if (count > 0) {
         int32_t j = 0;
         for (size_t q = 0; q < tool.verts.size(); ++q)
           if (m.vert_organ[tool.verts[q]] == b.organ) {
             for (int c = 0; c < 3; ++c) w.grasp_target[3 * j + c] = work.tool_target[3 * q + c];
             ++j;
           }
+        w.grasp_active = count;
         holds = true;
       }
     }
-
-    // Inertial prediction, rotations at the start of the step.
-    for (size_t i = 0; i < n3; ++i) w.s[i] = X[i] + h * Vn[i], w.q[i] = w.s[i];
-    for (int32_t t = 0; t < b.ntet; ++t) {
-      const Mat3 F = deformation(b, t, X);
-      const Mat3 R = rotation_fit(F, &w.quat[4 * t], kRotationIterations);
-      Eigen::Map<Mat3>(&w.f_prev[9 * t]) = F;
-      Eigen::Map<Mat3>(&w.r_prev[9 * t]) = R;
-    }
-    const double inv_h2 = 1.0 / (h * h);
-    Eigen::Map<ColMatX3> sol(w.sol.data(), b.nnode, 3);
-    const Eigen::Map<const Eigen::MatrixXd> Z(w.grasp_z.data(), b.nnode, k);
-    const Eigen::Map<const Eigen::MatrixXd> Lc(w.grasp_chol.data(), k, k);
-    for (int it = 0; it < b.iterations; ++it) {
-      // local step: the constraint projections, summed into the right-hand side (column-major)
-      for (int32_t i = 0; i < b.nnode; ++i)
-        for (int c = 0; c < 3; ++c)
-          w.sol[c * b.nnode + i] = b.factor->base_rhs[c * b.nnode + i] + b.mass[i] * inv_h2 * w.s[3 * i + c] + w.fext[3 * i + c];
-      for (int32_t t = 0; t < b.ntet; ++t) {
-        const Mat3 F = deformation(b, t, w.q.data());
-        const Mat3 R = rotation_fit(F, &w.quat[4 * t], kRotationIterations);
-        const double tr = (R.transpose() * F).trace();
-        const double wd = b.w_strain[t] * b.beta_s / h;
-        const Mat3 Y = b.w_strain[t] * R + b.w_volume[t] * (F - ((tr - 3.0) / 3.0) * R) +
-                       wd * (Eigen::Map<const Mat3>(&w.f_prev[9 * t]) + R - Eigen::Map<const Mat3>(&w.r_prev[9 * t]));
-        const int32_t* n = &b.tets[4 * t];
-        const double* g = &b.grad[12 * t];
-        for (int i = 0; i < 4; ++i) {
-          const Eigen::Vector3d y = Y * Eigen::Vector3d(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
-          for (int c = 0; c < 3; ++c) w.sol[c * b.nnode + n[i]] += y[c];
-        }
-      }
-      // global step: one prefactored solve, then the held vertices' exact constraints
-      sol = b.factor->ldlt.solve(sol);
-      if (k > 0) {
-        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> res(w.grasp_rhs.data(), k, 3);
-        for (int32_t j = 0; j < k; ++j) {
-          const int32_t v = w.grasp_verts[j];
-          const int32_t* n = &b.tets[4 * b.embed_tet[v]];
-          for (int c = 0; c < 3; ++c) {
-            double p = 0.0;
-            for (int i = 0; i < 4; ++i) p += b.embed_w[4 * v + i] * sol(n[i], c);
-            res(j, c) = w.grasp_target[3 * j + c] - p;
-          }
-        }
-        const Eigen::Matrix<double, Eigen::Dynamic, 3> lam =
-            Lc.transpose().triangularView<Eigen::Upper>().solve(Lc.triangularView<Eigen::Lower>().solve(res));
-        sol.noalias() += Z * lam;
-        if (it + 1 == b.iterations)
-          for (int32_t j = 0; j < k; ++j)
-            for (int c = 0; c < 3; ++c) reaction[c] -= lam(j, c);
-      }
-      for (int32_t i = 0; i < b.nnode; ++i)
-        for (int c = 0; c < 3; ++c) w.q[3 * i + c] = sol(i, c);
-    }
-    double checksum = 0.0;
-    for (size_t i = 0; i < n3; ++i) {
-      Vn[i] = (w.q[i] - X[i]) / h;
-      X[i] = w.q[i];
-      checksum += X[i] + Vn[i];
-    }
-    if (!std::isfinite(checksum)) {  // cannot happen with finite input; keep the state usable
-      std::copy(b.rest.begin(), b.rest.end(), X);
-      std::fill(Vn, Vn + n3, 0.0);
-      for (int32_t t = 0; t < b.ntet; ++t) w.quat[4 * t] = 1, w.quat[4 * t + 1] = w.quat[4 * t + 2] = w.quat[4 * t + 3] = 0;
-      w.grasp_verts.clear();
-      st.checksum = NAN;
-    }
-    // Surface vertices follow the lattice.
-    for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
-      const int32_t t = b.embed_tet[v - r.vert_begin];
-      if (t < 0) continue;
-      const int32_t* n = &b.tets[4 * t];
-      const double* bw = &b.embed_w[4 * (v - r.vert_begin)];
-      double p[3] = {0, 0, 0}, u[3] = {0, 0, 0};
-      for (int i = 0; i < 4; ++i)
-        for (int c = 0; c < 3; ++c) p[c] += bw[i] * X[3 * n[i] + c], u[c] += bw[i] * Vn[3 * n[i] + c];
-      s.x[v] = p[0], s.y[v] = p[1], s.z[v] = p[2];
-      s.vx[v] = u[0], s.vy[v] = u[1], s.vz[v] = u[2];
-      st.max_speed2 = std::max(st.max_speed2, u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-    }
-    if (std::isfinite(st.checksum)) st.checksum += checksum;
     st.reaction = st.reaction || holds;
+  }
+  // The organs' solves, in parallel on the step's worker threads when there are any.
+  SolveJob job{&m, &s, &work};
+  if (work.workers && work.workers->threads() > 1) work.workers->run(solve_job, &job);
+  else
+    for (size_t bi = 0; bi < m.solids.size(); ++bi)
+      if (work.solid[bi].active) solve_body(m, m.solids[bi], work.solid[bi], s);
+  for (size_t bi = 0; bi < m.solids.size(); ++bi) {
+    const SolidWork& w = work.solid[bi];
+    if (!w.active) continue;
+    st.max_speed2 = std::max(st.max_speed2, w.out_max_speed2);
+    if (!std::isfinite(w.out_checksum)) st.checksum = NAN;
+    else if (std::isfinite(st.checksum)) st.checksum += w.out_checksum;
+    for (int c = 0; c < 3; ++c) reaction[c] += w.out_reaction[c];
   }
   if (st.reaction) tool.reaction_N = reaction;
   return st;
@@ -552,8 +662,8 @@ double solid_energy(const Model& m, const State& s) {
       Mat3 U = svd.matrixU(), W = svd.matrixV();
       if ((U * W.transpose()).determinant() < 0) U.col(2) *= -1.0;
       const Mat3 R = U * W.transpose();
-      const double tr = (R.transpose() * F).trace() - 3.0;
-      e += 0.5 * b.w_strain[t] * (F - R).squaredNorm() + 0.5 * b.w_volume[t] * tr * tr / 3.0;
+      const double tv = volume_shift(R.transpose() * F);  // |F - (F + t R)|^2 = 3 t^2
+      e += 0.5 * b.w_strain[t] * (F - R).squaredNorm() + 0.5 * b.w_volume[t] * 3.0 * tv * tv;
     }
     if (m.gravity)
       for (int32_t i = 0; i < b.nnode; ++i)

@@ -37,7 +37,7 @@ struct MaterialSpec {
   double volume_stiffness = 0.5;     // volume constraint (paper 003 eq 25), 0..1; 0 = off. On by
                                      // default: surface springs alone do not hold the volume
   // solid model (sim/solid.hpp): written only for model: solid
-  double poisson_ratio = 0.45;
+  double poisson_ratio = 0.49;
   double damping_ratio = -1.0;       // < 0: the model's default (sim::Material::damping_ratio)
   int solid_nodes = 0;               // lattice node budget; 0 = the core's default
 };

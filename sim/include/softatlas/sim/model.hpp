@@ -79,9 +79,9 @@ struct Material {
   double flexion_stiffness = 0.0;    // dihedral springs, N m / rad; 0 = off
   double volume_stiffness = 0.0;     // volume constraint, 0..1 per step; 0 = off
   // solid model (sim/solid.hpp)
-  double poisson_ratio = 0.45;       // Lame lambda, mu from E and nu
-  int solid_nodes = 0;               // lattice node budget; 0 = 300
-  int solid_iterations = 0;          // local/global iterations per step; 0 = 6
+  double poisson_ratio = 0.49;       // Lame lambda, mu from E and nu (organs: nearly incompressible)
+  int solid_nodes = 0;               // lattice node budget; 0 = the scene's 1,500 shared by volume (80-300)
+  int solid_iterations = 0;          // local/global iterations per step; 0 = 4
 };
 
 // What the caller describes; compile() turns it into a Model (sim/scene.hpp).

@@ -6,9 +6,10 @@
 //              cells cut by the surface keep the fraction of their volume that lies inside as a
 //              weight on mass and stiffness (composite elements, Nesme et al. 2009); spacing
 //              from the organ's volume and a node budget (solid_lattice.cpp)
-//   energy     per tetrahedron mu |F - R|^2 + lambda / 2 (tr(R^T F) - 3)^2, R the rotation of F:
-//              corotational linear elasticity (Mueller & Gross 2004), written as the two
-//              projective-dynamics constraints of Bouaziz et al. 2014 (strain and volume)
+//   energy     per tetrahedron mu |F - R|^2 + 3 lambda / 2 t^2, R the rotation of F, t the shift
+//              with det(R^T F + t I) = 1: corotational elasticity (Mueller & Gross 2004) with an
+//              exact volume projection, written as the two projective-dynamics constraints of
+//              Bouaziz et al. 2014 (strain and volume)
 //   damping    Rayleigh stiffness-proportional damping beta K with beta = 2 zeta / omega_1, zeta
 //              the material's damping ratio at the organ's lowest shear mode omega_1, written in the
 //              rotated frame so that rigid motion is not damped
@@ -86,6 +87,7 @@ struct SolidWork {
   std::vector<double> rhs;         // #nnode * 3
   std::vector<double> sol;         // #nnode * 3 (column-major scratch for the solver)
   std::vector<double> quat;        // #ntet * 4 warm start of the rotation fits (w, x, y, z)
+  std::vector<double> rot;         // #ntet * 9 its rotation matrix (column-major)
   std::vector<double> f_prev;      // #ntet * 9 deformation gradient at the start of the step
   std::vector<double> r_prev;      // #ntet * 9 its rotation
   std::vector<double> fext;        // #nnode * 3 external nodal forces of this step
@@ -93,6 +95,11 @@ struct SolidWork {
   // Cholesky factor of S = C Z (k x k), multipliers (k * 3)
   std::vector<int32_t> grasp_verts;
   std::vector<double> grasp_z, grasp_chol, grasp_lambda, grasp_target, grasp_rhs;
+  // this step: awake, held vertices of the tool (0: none); results of the organ's solve
+  int thread = 0;                  // worker thread that solves this organ
+  bool active = false;
+  int32_t grasp_active = 0;
+  double out_reaction[3] = {0, 0, 0}, out_max_speed2 = 0.0, out_checksum = 0.0;
 };
 
 // Builds every organ whose material model is solid (after the rest of compile()).
@@ -110,7 +117,10 @@ struct SolidStats {
 };
 // Advances every awake solid organ by model.dt_s and writes its surface vertices' positions and
 // velocities; external loads: the tool (force or attachment, targets in work.tool_target), the
-// connection springs at the current positions, gravity.
+// connection springs (implicit on this organ's side, the other end at its start-of-step state),
+// gravity. Organs run in parallel on work.workers when the model has threads > 1. The grasp's
+// S = C A^-1 C^T uses the step's own matrix A (connections and anchors included), so
+// 1^T S^-1 1 is the grasp's one-step stiffness; grasp_lambda holds the last iteration's multipliers.
 SolidStats solid_step(const Model& model, State& state, Work& work);
 
 // One line for the compiled plan (explain): lattice size, material, damping, iterations.
