@@ -173,7 +173,8 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
   // The panel starts from the lesson's model, else the first simulated organ's material.
   const std::string start_model = !live.model.empty() ? live.model
                                   : set.find(scene->name(0)) ? set.find(scene->name(0))->material.model : "nmsm";
-  int model_index = start_model == "tmsm" ? 0 : start_model == "cmsm" ? 1 : start_model == "nmsm" ? 2 : 3;
+  int model_index = start_model == "tmsm" ? 0 : start_model == "cmsm" ? 1 : start_model == "nmsm" ? 2
+                    : start_model == "flexion" ? 3 : 4;
   float young = static_cast<float>(live.young_modulus_pa > 0 ? live.young_modulus_pa : 4000.0);
   float elastica_b = static_cast<float>(live.elastica_b >= 0 ? live.elastica_b : 0.1);
   std::vector<std::vector<float>> draw(scene->view_organs().size());
@@ -292,7 +293,10 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
       const bool right = glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
       const LessonStep* cur = current();
       const bool answering = cur && (cur->kind == StepKind::pick || cur->kind == StepKind::question);
-      if (left && !dragging && !answering && hover.organ >= 0 && scene->model_organ(hover.organ) >= 0) {
+      const bool rigid_hit = hover.organ >= 0 && scene->is_rigid(hover.organ);
+      if (left && !dragging && !answering && rigid_hit) {
+        status = scene->display_name(hover.organ) + " is rigid (bone): it does not move";
+      } else if (left && !dragging && !answering && hover.organ >= 0 && scene->model_organ(hover.organ) >= 0) {
         // Grasp: the patch within 10 mm of the picked point on the deformed surface.
         const int v = hover.organ;
         std::vector<int32_t> local;
@@ -446,8 +450,8 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         if (ImGui::Button("show all")) for (auto& s : viewer->styles) s.visible = true;
       }
       if (ImGui::CollapsingHeader("Physics", ImGuiTreeNodeFlags_DefaultOpen)) {
-        const char* models[] = {"tmsm", "cmsm", "nmsm", "flexion"};
-        ImGui::Combo("model", &model_index, models, 4);
+        const char* models[] = {"tmsm", "cmsm", "nmsm", "flexion", "solid"};
+        ImGui::Combo("model", &model_index, models, 5);
         ImGui::SliderFloat("E (Pa)", &young, 500.0f, 20000.0f, "%.0f", ImGuiSliderFlags_Logarithmic);
         ImGui::SliderFloat("elastica b", &elastica_b, 0.0f, 1.0f);
         bool paused = phys->paused.load();
@@ -533,7 +537,7 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
     if (rebuild) {
       // Live parameters: stop the physics thread, recompile the scene (or reset it), start
       // again; the viewer is rebuilt on the new scene, keeping the camera and styles.
-      const char* models[] = {"tmsm", "cmsm", "nmsm", "flexion"};
+      const char* models[] = {"tmsm", "cmsm", "nmsm", "flexion", "solid"};
       phys->stop.store(true);
       phys->thread.join();
       dragging = false;

@@ -63,9 +63,10 @@ void read_material(const std::string& file, const YAML::Node& node, MaterialSpec
              "material");
   if (node["model"]) {
     m.model = get<std::string>(file, node["model"], "a model name");
-    if (m.model != "tmsm" && m.model != "cmsm" && m.model != "nmsm" && m.model != "flexion" && m.model != "solid")
-      throw InputError(at(file, node["model"]),
-                       "unknown model '" + printable_text(m.model) + "' (expected tmsm, cmsm, nmsm, flexion or solid)");
+    if (m.model != "tmsm" && m.model != "cmsm" && m.model != "nmsm" && m.model != "flexion" &&
+        m.model != "solid" && m.model != "rigid")
+      throw InputError(at(file, node["model"]), "unknown model '" + printable_text(m.model) +
+                                                    "' (expected tmsm, cmsm, nmsm, flexion, solid or rigid)");
   }
   auto num = [&](const char* key, double& out, double lo, bool strict) {
     if (!node[key]) return;
@@ -371,17 +372,21 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
       y << "    mesh: " << yaml_escape(mesh_file) << "\n";
       if (o.face_budget) y << "    face_budget: " << o.face_budget << "\n";
       const MaterialSpec& m = o.material;
-      y << "    material: {model: " << m.model << ", young_modulus_pa: " << m.young_modulus_pa
-        << ", thickness_m: " << m.thickness_m << ", density_kg_m3: " << m.density_kg_m3
-        << ", damping_scale: " << m.damping_scale << ", elastica_a: " << m.elastica_a
-        << ", elastica_b: " << m.elastica_b << ", elastica_p: " << m.elastica_p
-        << ", tau_s: " << m.tau_s << ", tau_c: " << m.tau_c
-        << ", flexion_stiffness: " << m.flexion_stiffness
-        << ", volume_stiffness: " << m.volume_stiffness;
-      if (m.model == "solid")
-        y << ", poisson_ratio: " << m.poisson_ratio << ", solid_nodes: " << m.solid_nodes;
-      if (m.damping_ratio >= 0) y << ", damping_ratio: " << m.damping_ratio;
-      y << "}\n";
+      if (m.model == "rigid") {  // fixed context: only the density (its mass, for reports) matters
+        y << "    material: {model: rigid, density_kg_m3: " << m.density_kg_m3 << "}\n";
+      } else {
+        y << "    material: {model: " << m.model << ", young_modulus_pa: " << m.young_modulus_pa
+          << ", thickness_m: " << m.thickness_m << ", density_kg_m3: " << m.density_kg_m3
+          << ", damping_scale: " << m.damping_scale << ", elastica_a: " << m.elastica_a
+          << ", elastica_b: " << m.elastica_b << ", elastica_p: " << m.elastica_p
+          << ", tau_s: " << m.tau_s << ", tau_c: " << m.tau_c
+          << ", flexion_stiffness: " << m.flexion_stiffness
+          << ", volume_stiffness: " << m.volume_stiffness;
+        if (m.model == "solid")
+          y << ", poisson_ratio: " << m.poisson_ratio << ", solid_nodes: " << m.solid_nodes;
+        if (m.damping_ratio >= 0) y << ", damping_ratio: " << m.damping_ratio;
+        y << "}\n";
+      }
       if (!o.fixed_vertices.empty()) {
         y << "    fixed_vertices: [";
         for (size_t i = 0; i < o.fixed_vertices.size(); ++i) y << (i ? ", " : "") << o.fixed_vertices[i];
