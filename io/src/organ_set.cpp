@@ -271,7 +271,7 @@ OrganSet read_organ_set(const std::string& folder) {
   if (!root["organs"] || !root["organs"].IsSequence() || root["organs"].size() == 0)
     throw InputError(at(file, root), "'organs' must be a non-empty list");
   for (const YAML::Node& on : root["organs"]) {
-    check_keys(file, on, {"name", "label", "fma", "color", "mesh", "face_budget", "material", "fixed_vertices"},
+    check_keys(file, on, {"name", "label", "fma", "color", "mesh", "face_budget", "material", "fixed_vertices", "regions"},
                "organ");
     OrganEntry o;
     if (!on["name"]) throw InputError(at(file, on), "organ without 'name'");
@@ -303,6 +303,23 @@ OrganSet read_organ_set(const std::string& folder) {
           throw InputError(at(file, v), "fixed vertex " + std::to_string(idx) + " outside 0.." +
                                             std::to_string(o.mesh.vertex_count() - 1) + " of " + mesh_path);
         o.fixed_vertices.push_back(idx);
+      }
+    }
+    if (on["regions"]) {  // name: [x, y, z] (mm)
+      const YAML::Node& rn = on["regions"];
+      if (!rn.IsMap()) throw InputError(at(file, rn), "regions: expected a map of region names to [x, y, z] (mm)");
+      for (const auto& kv : rn) {
+        const std::string name = get<std::string>(file, kv.first, "a region name");
+        const YAML::Node& p = kv.second;
+        if (!p.IsSequence() || p.size() != 3)
+          throw InputError(at(file, p), "region '" + printable_text(name) + "': expected [x, y, z] (mm)");
+        std::array<double, 3> q{};
+        for (int k = 0; k < 3; ++k) {
+          q[k] = get_number(file, p[k], "a coordinate (mm)");
+          if (!(std::abs(q[k]) <= 1e4)) throw InputError(at(file, p[k]), "region coordinates must be within 1e4 mm of the origin");
+        }
+        if (o.find_region(name)) throw InputError(at(file, kv.first), "duplicate region '" + printable_text(name) + "'");
+        o.regions.push_back({name, q});
       }
     }
     set.organs.push_back(std::move(o));
@@ -391,6 +408,11 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
         y << "    fixed_vertices: [";
         for (size_t i = 0; i < o.fixed_vertices.size(); ++i) y << (i ? ", " : "") << o.fixed_vertices[i];
         y << "]\n";
+      }
+      if (!o.regions.empty()) {
+        y << "    regions:\n";
+        for (const auto& [n, q] : o.regions)
+          y << "      " << yaml_escape(n) << ": [" << q[0] << ", " << q[1] << ", " << q[2] << "]\n";
       }
       write_ply(o.mesh, (tmp / mesh_file).string());
     }

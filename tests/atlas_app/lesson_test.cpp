@@ -66,6 +66,21 @@ TEST(Lesson, ValidLessonLoads) {
   EXPECT_EQ(l.set.organs.size(), 10u);  // data/atlas
 }
 
+// A pull may name a region of its organ (data/atlas's liver has the HRA sub-meshes' regions):
+// it becomes that region's landmark; a name the organ does not have lists the ones it has.
+TEST(Lesson, NamedRegionsBecomeLandmarks) {
+  const Lesson l = load_lesson(write("named_region", replace(valid_lesson(), "region: inferior", "region: gastric_impression")));
+  ASSERT_EQ(l.steps[1].kind, StepKind::pull);
+  EXPECT_EQ(l.steps[1].pull.region, "gastric_impression");
+  ASSERT_TRUE(l.steps[1].pull.has_landmark);
+  const auto* p = l.set.find("liver")->find_region("gastric_impression");
+  ASSERT_NE(p, nullptr);
+  EXPECT_EQ(l.steps[1].pull.landmark_mm, Eigen::Vector3d((*p)[0], (*p)[1], (*p)[2]));
+  expect_error("bad_named_region", replace(valid_lesson(), "region: inferior", "region: hilum"), 9, 34,
+               "unknown region 'hilum' (expected anterior, posterior, superior, inferior, left or right, or a named "
+               "region of liver: bare_area, liver_capsule,");
+}
+
 TEST(Lesson, UnknownKey) {
   expect_error("unknown_top", valid_lesson() + "colour: red\n", 11, 1, "unknown key 'colour'");
   expect_error("unknown_pull", replace(valid_lesson(), "max_force_N: 1}", "max_force_N: 1, speed: 3}"), 9, 84,

@@ -69,6 +69,7 @@ TEST(OrganSet, RigidOrgansRoundTripAndStayRigidUnderAnOverride) {
   EXPECT_NE(text.find("material: {model: rigid, density_kg_m3: 1900}"), std::string::npos) << text;
   const io::OrganSet set = io::read_organ_set(dir.string());
   EXPECT_EQ(set.organs[1].material.model, "rigid");
+  EXPECT_TRUE(set.organs[0].regions.empty());
   EXPECT_EQ(set.organs[1].material.density_kg_m3, 1900);
   io::SceneOptions opt;
   opt.model_override = "tmsm";
@@ -88,6 +89,38 @@ TEST(OrganSet, RigidOrgansRoundTripAndStayRigidUnderAnOverride) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("unknown model 'bone' (expected tmsm, cmsm, nmsm, flexion, solid or rigid)"),
               std::string::npos) << e.what();
+  }
+}
+
+// Named regions (landmarks) round-trip in file order; a bad point names the file and line.
+TEST(OrganSet, NamedRegionsRoundTripAndBadOnesAreRejected) {
+  const fs::path dir = fresh("softatlas_set_regions");
+  io::OrganSet in = small_set();
+  in.organs[0].regions = {{"gastric_impression", {-24.5, 69, 388.9}}, {"bare_area", {31.25, -16, 384.5}}};
+  io::write_organ_set(in, dir.string());
+  const io::OrganSet set = io::read_organ_set(dir.string());
+  ASSERT_EQ(set.organs[0].regions.size(), 2u);
+  EXPECT_EQ(set.organs[0].regions[0].first, "gastric_impression");
+  EXPECT_EQ(set.organs[0].regions[1].second, (std::array<double, 3>{31.25, -16, 384.5}));
+  EXPECT_NE(set.organs[0].find_region("bare_area"), nullptr);
+  EXPECT_EQ(set.organs[0].find_region("hilum"), nullptr);
+  std::ifstream yaml(dir / "atlas.yaml");
+  std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
+  for (const auto& [bad, what] : std::vector<std::pair<std::string, std::string>>{
+           {"bare_area: [31.25, -16]", "region 'bare_area': expected [x, y, z] (mm)"},
+           {"bare_area: [31.25, -16, 1e9]", "region coordinates must be within 1e4 mm"},
+           {"bare_area: [31.25, -16, .nan]", ""},
+           {"bare_area: [31.25, -16, 384.5]\n      gastric_impression: [0, 0, 0]", "duplicate"}}) {
+    std::string t = text;
+    t.replace(t.find("bare_area: [31.25, -16, 384.5]"), 30, bad);
+    std::ofstream(dir / "atlas.yaml") << t;
+    try {
+      io::read_organ_set(dir.string());
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("atlas.yaml:"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
   }
 }
 
