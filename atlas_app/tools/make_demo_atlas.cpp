@@ -38,6 +38,7 @@
 #include "softatlas/pipeline/connect.hpp"
 #include "softatlas/pipeline/remesh.hpp"
 #include "softatlas/pipeline/surface.hpp"
+#include "softatlas/pipeline/topology.hpp"
 #include "softatlas/pipeline/volume.hpp"
 
 namespace {
@@ -151,17 +152,6 @@ softatlas::pipeline::Volume patches_to_mask(const std::vector<const Patch*>& pat
   return vol;
 }
 
-double volume_ml(const TriMesh& t) {
-  double v = 0;
-  for (size_t f = 0; f < t.face_count(); ++f) {
-    const double* a = &t.vertices[3 * t.faces[3 * f]];
-    const double* b = &t.vertices[3 * t.faces[3 * f + 1]];
-    const double* c = &t.vertices[3 * t.faces[3 * f + 2]];
-    v += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
-  }
-  return v / 1000.0;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -239,7 +229,7 @@ int main(int argc, char** argv) {
         e.fixed_vertices.erase(std::unique(e.fixed_vertices.begin(), e.fixed_vertices.end()), e.fixed_vertices.end());
       }
       std::fprintf(stderr, "%-13s %2zu sub-meshes, mask %zu voxels, V %5zu F %5zu, %.1f mL, repairs:", in.name,
-                   parts.size(), surf.mask_voxels, e.mesh.vertex_count(), e.mesh.face_count(), volume_ml(e.mesh));
+                   parts.size(), surf.mask_voxels, e.mesh.vertex_count(), e.mesh.face_count(), softatlas::pipeline::inspect_surface(e.mesh).signed_volume_mm3 / 1000.0);
       for (const auto& r : rem.repairs) std::fprintf(stderr, " %s", r.c_str());
       std::fprintf(stderr, ", Hausdorff %.2f mm\n", rem.hausdorff_mm);
       // Named regions: each sub-mesh's vertex nearest to its centroid (a point on the source
