@@ -298,7 +298,10 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
       const bool right = glfwGetMouseButton(win, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
       const LessonStep* cur = current();
       const bool answering = cur && (cur->kind == StepKind::pick || cur->kind == StepKind::question);
-      if (left && !dragging && !answering && hover.organ >= 0 && scene->model_organ(hover.organ) >= 0) {
+      const bool rigid_hit = hover.organ >= 0 && scene->is_rigid(hover.organ);
+      if (left && !dragging && !answering && rigid_hit) {
+        status = scene->display_name(hover.organ) + " is rigid (bone): it does not move";
+      } else if (left && !dragging && !answering && hover.organ >= 0 && scene->model_organ(hover.organ) >= 0) {
         // Grasp: the patch within 10 mm of the picked point on the deformed surface.
         const int v = hover.organ;
         std::vector<int32_t> local;

@@ -143,9 +143,7 @@ LessonStep parse_step(const Ctx& c, const YAML::Node& n, size_t index) {
     c.guard([&] {
       if (m["region"] && m["landmark_mm"]) c.fail(m, "pull takes either 'region' or 'landmark_mm', not both");
       if (m["region"]) {
-        s.pull.region = c.str(m["region"], "region");
-        if (!one_of(s.pull.region, kRegions, 6))
-          c.fail(m["region"], "unknown region '" + s.pull.region + "' (expected anterior, posterior, superior, inferior, left or right)");
+        s.pull.region = c.str(m["region"], "region");  // a direction, or a named region (checked below)
       } else if (m["landmark_mm"]) {
         const auto v = c.vec(m["landmark_mm"], "landmark_mm", 3, -1e5, 1e5);
         s.pull.has_landmark = true;
@@ -304,6 +302,24 @@ Lesson load_lesson(const std::string& path) {
         c.report(step_nodes[i], "organ '" + n + "' is not in this lesson's scene (add it to scene.organs or scene.context)");
       else if (s.kind == StepKind::pull && std::find(L.organs.begin(), L.organs.end(), n) == L.organs.end())
         c.report(step_nodes[i], "pull needs a simulated organ: '" + n + "' must be in scene.organs, not context");
+    }
+    // A pull's region: one of the six directions, or a named region of its organ (a landmark).
+    if (s.kind == StepKind::pull && !s.pull.region.empty() && !one_of(s.pull.region, kRegions, 6)) {
+      const YAML::Node where = step_nodes[i]["pull"]["region"];
+      const io::OrganEntry* o = L.set.find(s.pull.organ);
+      const std::array<double, 3>* p = o ? o->find_region(s.pull.region) : nullptr;
+      if (p) {
+        LessonStep& w = L.steps[i];
+        w.pull.has_landmark = true;
+        w.pull.landmark_mm = {(*p)[0], (*p)[1], (*p)[2]};
+      } else {
+        std::string named;
+        if (o)
+          for (const auto& [rn, q] : o->regions) named += (named.empty() ? "" : ", ") + rn;
+        c.report(where, "unknown region '" + s.pull.region +
+                            "' (expected anterior, posterior, superior, inferior, left or right" +
+                            (named.empty() ? std::string(")") : ", or a named region of " + s.pull.organ + ": " + named + ")"));
+      }
     }
   }
   c.finish();

@@ -16,7 +16,7 @@ namespace {
 sim::Material material_from_spec(const io::MaterialSpec& spec, const PhysicsSettings& physics,
                                  const std::string& where) {
   io::MaterialSpec s = spec;
-  if (!physics.model.empty()) s.model = physics.model;
+  if (!physics.model.empty() && s.model != "rigid") s.model = physics.model;  // bone stays rigid
   sim::Material m = io::to_sim_material(s, where);
   if (physics.young_modulus_pa > 0) m.young_modulus_pa = physics.young_modulus_pa;
   if (physics.damping_scale >= 0) m.damping_scale = physics.damping_scale;
@@ -124,6 +124,7 @@ OrganInfo organ_info(const std::string& n) {
       {"spinal_cord", {"Spinal cord", "nervous"}}, {"vertebrae_L5", {"Fifth lumbar vertebra", "skeletal"}},
       {"vertebrae_L1", {"First lumbar vertebra", "skeletal"}}, {"sacrum", {"Sacrum", "skeletal"}},
       {"hip_left", {"Left hip bone", "skeletal"}}, {"hip_right", {"Right hip bone", "skeletal"}},
+      {"coccyx", {"Coccyx", "skeletal"}},          {"pelvis", {"Bony pelvis", "skeletal"}},
   };
   for (const auto& [key, info] : table)
     if (n == key) return info;
@@ -144,6 +145,10 @@ int AtlasScene::view_index(const std::string& organ) const {
   for (size_t v = 0; v < view_organs_.size(); ++v)
     if (name(static_cast<int>(v)) == organ) return static_cast<int>(v);
   return -1;
+}
+
+bool AtlasScene::is_rigid(int view_index) const {
+  return set_.organs[static_cast<size_t>(view_organs_[static_cast<size_t>(view_index)])].material.model == "rigid";
 }
 
 void AtlasScene::positions_mm(int v, std::vector<float>& out) const {

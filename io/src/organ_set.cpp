@@ -64,9 +64,10 @@ void read_material(const std::string& file, const YAML::Node& node, MaterialSpec
              "material");
   if (node["model"]) {
     m.model = get<std::string>(file, node["model"], "a model name");
-    if (m.model != "tmsm" && m.model != "cmsm" && m.model != "nmsm" && m.model != "flexion" && m.model != "solid")
-      throw InputError(at(file, node["model"]),
-                       "unknown model '" + printable_text(m.model) + "' (expected tmsm, cmsm, nmsm, flexion or solid)");
+    if (m.model != "tmsm" && m.model != "cmsm" && m.model != "nmsm" && m.model != "flexion" &&
+        m.model != "solid" && m.model != "rigid")
+      throw InputError(at(file, node["model"]), "unknown model '" + printable_text(m.model) +
+                                                    "' (expected tmsm, cmsm, nmsm, flexion, solid or rigid)");
   }
   auto num = [&](const char* key, double& out, double lo, bool strict) {
     if (!node[key]) return;
@@ -271,7 +272,7 @@ OrganSet read_organ_set(const std::string& folder) {
   if (!root["organs"] || !root["organs"].IsSequence() || root["organs"].size() == 0)
     throw InputError(at(file, root), "'organs' must be a non-empty list");
   for (const YAML::Node& on : root["organs"]) {
-    check_keys(file, on, {"name", "label", "fma", "color", "mesh", "face_budget", "material", "fixed_vertices"},
+    check_keys(file, on, {"name", "label", "fma", "color", "mesh", "face_budget", "material", "fixed_vertices", "regions"},
                "organ");
     OrganEntry o;
     if (!on["name"]) throw InputError(at(file, on), "organ without 'name'");
@@ -303,6 +304,23 @@ OrganSet read_organ_set(const std::string& folder) {
           throw InputError(at(file, v), "fixed vertex " + std::to_string(idx) + " outside 0.." +
                                             std::to_string(o.mesh.vertex_count() - 1) + " of " + mesh_path);
         o.fixed_vertices.push_back(idx);
+      }
+    }
+    if (on["regions"]) {  // name: [x, y, z] (mm)
+      const YAML::Node& rn = on["regions"];
+      if (!rn.IsMap()) throw InputError(at(file, rn), "regions: expected a map of region names to [x, y, z] (mm)");
+      for (const auto& kv : rn) {
+        const std::string name = get<std::string>(file, kv.first, "a region name");
+        const YAML::Node& p = kv.second;
+        if (!p.IsSequence() || p.size() != 3)
+          throw InputError(at(file, p), "region '" + printable_text(name) + "': expected [x, y, z] (mm)");
+        std::array<double, 3> q{};
+        for (int k = 0; k < 3; ++k) {
+          q[k] = get_number(file, p[k], "a coordinate (mm)");
+          if (!(std::abs(q[k]) <= 1e4)) throw InputError(at(file, p[k]), "region coordinates must be within 1e4 mm of the origin");
+        }
+        if (o.find_region(name)) throw InputError(at(file, kv.first), "duplicate region '" + printable_text(name) + "'");
+        o.regions.push_back({name, q});
       }
     }
     set.organs.push_back(std::move(o));
@@ -361,21 +379,30 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
       y << "    mesh: " << yaml_escape(mesh_file) << "\n";
       if (o.face_budget) y << "    face_budget: " << o.face_budget << "\n";
       const MaterialSpec& m = o.material;
-      y << "    material: {model: " << m.model << ", young_modulus_pa: " << m.young_modulus_pa
-        << ", thickness_m: " << m.thickness_m << ", density_kg_m3: " << m.density_kg_m3
-        << ", damping_scale: " << m.damping_scale << ", elastica_a: " << m.elastica_a
-        << ", elastica_b: " << m.elastica_b << ", elastica_p: " << m.elastica_p
-        << ", tau_s: " << m.tau_s << ", tau_c: " << m.tau_c
-        << ", flexion_stiffness: " << m.flexion_stiffness
-        << ", volume_stiffness: " << m.volume_stiffness;
-      if (m.model == "solid")
-        y << ", poisson_ratio: " << m.poisson_ratio << ", solid_nodes: " << m.solid_nodes;
-      if (m.damping_ratio >= 0) y << ", damping_ratio: " << m.damping_ratio;
-      y << "}\n";
+      if (m.model == "rigid") {  // fixed context: only the density (its mass, for reports) matters
+        y << "    material: {model: rigid, density_kg_m3: " << m.density_kg_m3 << "}\n";
+      } else {
+        y << "    material: {model: " << m.model << ", young_modulus_pa: " << m.young_modulus_pa
+          << ", thickness_m: " << m.thickness_m << ", density_kg_m3: " << m.density_kg_m3
+          << ", damping_scale: " << m.damping_scale << ", elastica_a: " << m.elastica_a
+          << ", elastica_b: " << m.elastica_b << ", elastica_p: " << m.elastica_p
+          << ", tau_s: " << m.tau_s << ", tau_c: " << m.tau_c
+          << ", flexion_stiffness: " << m.flexion_stiffness
+          << ", volume_stiffness: " << m.volume_stiffness;
+        if (m.model == "solid")
+          y << ", poisson_ratio: " << m.poisson_ratio << ", solid_nodes: " << m.solid_nodes;
+        if (m.damping_ratio >= 0) y << ", damping_ratio: " << m.damping_ratio;
+        y << "}\n";
+      }
       if (!o.fixed_vertices.empty()) {
         y << "    fixed_vertices: [";
         for (size_t i = 0; i < o.fixed_vertices.size(); ++i) y << (i ? ", " : "") << o.fixed_vertices[i];
         y << "]\n";
+      }
+      if (!o.regions.empty()) {
+        y << "    regions:\n";
+        for (const auto& [n, q] : o.regions)
+          y << "      " << yaml_escape(n) << ": [" << q[0] << ", " << q[1] << ", " << q[2] << "]\n";
       }
       write_ply(o.mesh, (tmp / mesh_file).string());
     }

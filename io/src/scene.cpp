@@ -8,7 +8,7 @@ namespace softatlas::io {
 sim::Material to_sim_material(const MaterialSpec& spec, const std::string& where) {
   sim::Material m;
   if (!sim::parse_model_kind(spec.model, m.model))
-    throw InputError(where, "unknown model '" + spec.model + "' (expected tmsm, cmsm, nmsm, flexion or solid)");
+    throw InputError(where, "unknown model '" + spec.model + "' (expected tmsm, cmsm, nmsm, flexion, solid or rigid)");
   m.young_modulus_pa = spec.young_modulus_pa;
   m.thickness_m = spec.thickness_m;
   m.density_kg_m3 = spec.density_kg_m3;
@@ -49,7 +49,8 @@ sim::SceneDesc scene_from_organ_set(const OrganSet& set, const SceneOptions& opt
     d.faces = o.mesh.faces;
     d.fixed = o.fixed_vertices;
     MaterialSpec spec = o.material;
-    if (!options.model_override.empty()) spec.model = options.model_override;
+    // an override swaps the soft tissue model; rigid context (bone) stays rigid
+    if (!options.model_override.empty() && spec.model != "rigid") spec.model = options.model_override;
     d.material = to_sim_material(spec, where + ": organ '" + o.name + "' material");
     d.shown = options.shown.empty();
     for (const std::string& name : options.shown) d.shown = d.shown || name == o.name;

@@ -181,12 +181,14 @@ const char* to_string(ModelKind kind) {
     case ModelKind::nmsm: return "nmsm";
     case ModelKind::flexion: return "flexion";
     case ModelKind::solid: return "solid";
+    case ModelKind::rigid: return "rigid";
   }
   return "?";
 }
 
 bool parse_model_kind(const std::string& text, ModelKind& out) {
-  for (ModelKind k : {ModelKind::tmsm, ModelKind::cmsm, ModelKind::nmsm, ModelKind::flexion, ModelKind::solid})
+  for (ModelKind k : {ModelKind::tmsm, ModelKind::cmsm, ModelKind::nmsm, ModelKind::flexion, ModelKind::solid,
+                      ModelKind::rigid})
     if (text == to_string(k)) return out = k, true;
   return false;
 }
@@ -409,7 +411,8 @@ Model compile(const SceneDesc& scene) {
     const double median_len = sorted_lens[sorted_lens.size() / 2];
     const double min_len = 1e-3 * median_len;
 
-    if (mat.model == ModelKind::solid) unique.clear();  // no surface springs: sim/solid.hpp
+    // no surface springs: solid organs (sim/solid.hpp) and rigid ones (fixed context)
+    if (mat.model == ModelKind::solid || mat.model == ModelKind::rigid) unique.clear();
     r.spring_begin = m.nspring;
     for (size_t s = 0; s < unique.size(); ++s) {
       const Edge& e = unique[s];
@@ -512,7 +515,7 @@ Model compile(const SceneDesc& scene) {
     }
     r.flex_end = m.nflex;
     // The volume constraint (paper 003) is a pass of its own: any surface model may use it.
-    r.volume_stiffness = mat.volume_stiffness;
+    r.volume_stiffness = mat.model == ModelKind::rigid ? 0.0 : mat.volume_stiffness;
 
     // fixed vertices
     m.vert_inv_mass.resize(m.nvert, 0.0);
@@ -521,6 +524,10 @@ Model compile(const SceneDesc& scene) {
     for (int32_t v : od.fixed) {
       const int32_t g = l2g[v];
       if (g >= 0) m.vert_inv_mass[g] = 0.0, r.has_fixed = true;
+    }
+    if (mat.model == ModelKind::rigid) {  // rigid: every vertex held where the mesh puts it
+      std::fill(m.vert_inv_mass.begin() + r.vert_begin, m.vert_inv_mass.begin() + r.vert_end, 0.0);
+      r.has_fixed = true;
     }
     m.organs.push_back(r);
   }
@@ -536,15 +543,22 @@ Model compile(const SceneDesc& scene) {
                                   scene.organs[cd.organ_b].name + ":" + std::to_string(cd.vertex_b),
             "connects a vertex used by no face");
     if (cd.stiffness == 0) { ++dropped_conn; continue; }
+    if (scene.organs[cd.organ_a].material.model == ModelKind::rigid &&
+        scene.organs[cd.organ_b].material.model == ModelKind::rigid) { ++dropped_conn; continue; }
     m.conn_a.push_back(a), m.conn_b.push_back(b);
     m.conn_rest.push_back(cd.rest_length_m);
     m.conn_k.push_back(cd.stiffness);
     m.conn_d.push_back(spring_damping(cd.stiffness, m.vert_mass[a], m.vert_mass[b]));
     ++m.nconn;
+    for (int32_t v : {a, b})
+      if (m.organs[m.vert_organ[v]].model == ModelKind::rigid) m.rigid_conn_verts.push_back(v);
   }
+  std::sort(m.rigid_conn_verts.begin(), m.rigid_conn_verts.end());
+  m.rigid_conn_verts.erase(std::unique(m.rigid_conn_verts.begin(), m.rigid_conn_verts.end()),
+                           m.rigid_conn_verts.end());
   if (dropped_conn)
     m.dropped.push_back(std::to_string(dropped_conn) +
-                        " connection springs: to organs left out, or zero stiffness");
+                        " connection springs: to organs left out, zero stiffness, or between two rigid organs");
 
   // organ adjacency (CSR) for sleeping and waking
   const int32_t norg = static_cast<int32_t>(m.organs.size());
@@ -639,7 +653,10 @@ Model compile(const SceneDesc& scene) {
            std::to_string(r.compensation_iterations) + " iterations)";
     if (r.flex_end > r.flex_begin) s += ", " + std::to_string(r.flex_end - r.flex_begin) + " flexion springs";
     if (r.volume_stiffness > 0) s += ", volume constraint (stiffness " + num(r.volume_stiffness) + ")";
-    if (!r.has_fixed) s += ", no fixed vertices";
+    if (r.model == ModelKind::rigid)
+      s = "organ '" + r.name + "' [rigid]: all " + std::to_string(r.vert_end - r.vert_begin) +
+          " vertices fixed, no internal forces, never stepped (anchors connection springs)";
+    else if (!r.has_fixed) s += ", no fixed vertices";
     if (r.model == ModelKind::solid) s += ", " + solid_plan(m.solids[m.organ_solid[&r - m.organs.data()]]);
     line(s);
   }

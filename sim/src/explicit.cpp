@@ -59,6 +59,19 @@ void integrate_organ(const Model& m, const OrganRange& r, State& s, Work& w, dou
   st.accel_sum += asum;
 }
 
+// The explicit update zeroes the forces it consumes; a sleeping organ's forces stay, so the next
+// step must clear all of them unless every organ that can move was integrated. Rigid organs never
+// move: only their vertices that end a connection spring hold a force, cleared here.
+bool all_soft_awake(const Model& m, const State& s) {
+  for (size_t o = 0; o < m.organs.size(); ++o)
+    if (!s.organ_awake[o] && m.organs[o].model != ModelKind::rigid) return false;
+  return true;
+}
+
+void clear_rigid_forces(const Model& m, Work& w) {
+  for (int32_t v : m.rigid_conn_verts) w.fx[v] = 0.0, w.fy[v] = 0.0, w.fz[v] = 0.0;
+}
+
 // Explicit sub-step with the organs spread over the worker threads: each thread computes its
 // organs' internal forces (organs own disjoint vertex ranges, so no two threads write the same
 // force), the calling thread adds connections and the tool, then each thread integrates its
@@ -114,9 +127,8 @@ IntegrateStats explicit_substep_parallel(const Model& m, State& s, Work& w, doub
     st.checksum += p.stats[t].checksum;
     st.accel_sum += p.stats[t].accel_sum;
   }
-  bool all_awake = true;
-  for (uint8_t a : s.organ_awake) all_awake = all_awake && a;
-  w.forces_zero = all_awake;
+  w.forces_zero = all_soft_awake(m, s);
+  clear_rigid_forces(m, w);
   if (attached) snap_attached(s, w);
   constraint_passes(m, s, w, h);
   return st;
@@ -133,13 +145,13 @@ IntegrateStats explicit_substep(const Model& m, State& s, Work& w, double h, boo
     hold_attached(s, w, h, /*snap=*/false);
   }
   IntegrateStats st;
-  bool all_awake = true;
   for (size_t o = 0; o < m.organs.size(); ++o) {
-    if (!s.organ_awake[o]) { all_awake = false; continue; }
+    if (!s.organ_awake[o]) continue;
     if (verlet) integrate_organ<true>(m, m.organs[o], s, w, h, st);
     else integrate_organ<false>(m, m.organs[o], s, w, h, st);
   }
-  w.forces_zero = all_awake;
+  w.forces_zero = all_soft_awake(m, s);
+  clear_rigid_forces(m, w);
   if (attached) snap_attached(s, w);
   constraint_passes(m, s, w, h);
   return st;

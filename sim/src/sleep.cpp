@@ -1,5 +1,6 @@
 // Sleeping organs: an organ (and its connected organs) still for sleep_steps steps stops being
-// integrated until a tool or an awake neighbour moves it.
+// integrated until a tool or an awake neighbour moves it. Rigid organs never wake: nothing moves
+// them, and a wake does not pass through them to the organs on their other side.
 #include <algorithm>
 #include <vector>
 
@@ -37,7 +38,7 @@ void update_sleep(const Model& m, State& s) {
     std::fill(s.vz.begin() + r.vert_begin, s.vz.begin() + r.vert_end, 0.0);
   }
   for (int32_t o = 0; o < norg; ++o) {  // an awake, moving neighbour wakes a sleeper
-    if (s.organ_awake[o]) continue;
+    if (s.organ_awake[o] || m.organs[o].model == ModelKind::rigid) continue;
     for (int32_t k = m.organ_neighbors_begin[o]; k < m.organ_neighbors_begin[o + 1]; ++k) {
       const int32_t nb = m.organ_neighbors[k];
       if (s.organ_awake[nb] && s.organ_still_steps[nb] == 0) {
@@ -58,6 +59,7 @@ void wake(const Model& m, State& s, int32_t organ) {
   while (!stack.empty()) {
     const int32_t o = stack.back();
     stack.pop_back();
+    if (m.organs[o].model == ModelKind::rigid) continue;
     if (s.organ_awake[o] && s.organ_still_steps[o] == 0) continue;
     s.organ_awake[o] = 1, s.organ_still_steps[o] = 0;
     for (int32_t k = m.organ_neighbors_begin[o]; k < m.organ_neighbors_begin[o + 1]; ++k)

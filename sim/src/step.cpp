@@ -16,6 +16,8 @@ State make_state(const Model& m) {
   s.x = m.vert_rest_x, s.y = m.vert_rest_y, s.z = m.vert_rest_z;
   s.vx.assign(m.nvert, 0.0), s.vy.assign(m.nvert, 0.0), s.vz.assign(m.nvert, 0.0);
   s.organ_awake.assign(m.organs.size(), 1);
+  for (size_t o = 0; o < m.organs.size(); ++o)  // rigid organs sleep for good (sleep.cpp)
+    if (m.organs[o].model == ModelKind::rigid) s.organ_awake[o] = 0;
   s.organ_still_steps.assign(m.organs.size(), 0);
   init_solid_state(m, s);                              // solid_step.cpp: lattice nodes at rest
   return s;

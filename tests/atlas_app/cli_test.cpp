@@ -68,7 +68,7 @@ TEST(Cli, BenchRenderReportsFps) {
   o.frames = 10;
   const auto j = nlohmann::json::parse(bench_render(o));
   EXPECT_GT(j.at("fps").get<double>(), 0.0);
-  EXPECT_EQ(j.at("faces").get<int>(), 15960);
+  EXPECT_EQ(j.at("faces").get<int>(), 16180);  // data/atlas
   EXPECT_EQ(j.at("backend").get<std::string>(), "osmesa");
 }
 

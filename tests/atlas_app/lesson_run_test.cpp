@@ -104,20 +104,20 @@ INSTANTIATE_TEST_SUITE_P(
     Shipped, LessonRun,
     ::testing::Values(Case{"liver_mobility", "pass", true, "reached"},
                       Case{"liver_mobility", "fail", false, "pulled too hard"},
-                      Case{"organ_quiz", "pass", true, "picked stomach"},
-                      Case{"organ_quiz", "fail", false, "picked liver, expected stomach"},
+                      Case{"organ_quiz", "pass", true, "picked pancreas"},
+                      Case{"organ_quiz", "fail", false, "picked liver, expected pancreas"},
                       Case{"kidney_anchor", "pass", true, "reached"},
                       Case{"kidney_anchor", "fail", false, "pulled too little"},
                       Case{"sectional_anatomy", "pass", true, "picked kidney_right"},
-                      Case{"sectional_anatomy", "fail", false, "answered Liver, the answer is Stomach"},
+                      Case{"sectional_anatomy", "fail", false, "answered Liver, the answer is Spleen"},
                       Case{"kidney_sections", "pass", true, "answered Right kidney"},
                       Case{"kidney_sections", "fail", false, "picked kidney_right, expected kidney_left"},
-                      Case{"stomach_pull", "pass", true, "reached"},
-                      Case{"stomach_pull", "fail", false, "pulled too hard"}),
+                      Case{"spleen_pull", "pass", true, "reached"},
+                      Case{"spleen_pull", "fail", false, "pulled too hard"}),
     [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.lesson) + "_" + i.param.script; });
 
 const char* kCovered[] = {"liver_mobility", "organ_quiz", "kidney_anchor", "sectional_anatomy", "kidney_sections",
-                          "stomach_pull"};
+                          "spleen_pull"};
 
 TEST(LessonRunCoverage, EveryShippedLessonHasPassAndFailCases) {
   int n = 0;

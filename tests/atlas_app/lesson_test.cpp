@@ -63,7 +63,22 @@ TEST(Lesson, ValidLessonLoads) {
   EXPECT_EQ(l.steps[1].pull.region, "inferior");
   EXPECT_DOUBLE_EQ(l.steps[1].pull.max_force_N, 1.0);
   EXPECT_EQ(l.task_count(), 2);
-  EXPECT_EQ(l.set.organs.size(), 4u);
+  EXPECT_EQ(l.set.organs.size(), 10u);  // data/atlas
+}
+
+// A pull may name a region of its organ (data/atlas's liver has the HRA sub-meshes' regions):
+// it becomes that region's landmark; a name the organ does not have lists the ones it has.
+TEST(Lesson, NamedRegionsBecomeLandmarks) {
+  const Lesson l = load_lesson(write("named_region", replace(valid_lesson(), "region: inferior", "region: gastric_impression")));
+  ASSERT_EQ(l.steps[1].kind, StepKind::pull);
+  EXPECT_EQ(l.steps[1].pull.region, "gastric_impression");
+  ASSERT_TRUE(l.steps[1].pull.has_landmark);
+  const auto* p = l.set.find("liver")->find_region("gastric_impression");
+  ASSERT_NE(p, nullptr);
+  EXPECT_EQ(l.steps[1].pull.landmark_mm, Eigen::Vector3d((*p)[0], (*p)[1], (*p)[2]));
+  expect_error("bad_named_region", replace(valid_lesson(), "region: inferior", "region: hilum"), 9, 34,
+               "unknown region 'hilum' (expected anterior, posterior, superior, inferior, left or right, or a named "
+               "region of liver: bare_area, liver_capsule,");
 }
 
 TEST(Lesson, UnknownKey) {
@@ -82,11 +97,11 @@ TEST(Lesson, WrongType) {
 }
 
 TEST(Lesson, AbsentOrganFailsWithAClearMessage) {
-  expect_error("absent_organ", replace(valid_lesson(), "organs: [liver]", "organs: [liver, spleen]"), 4, 19,
-               "organ 'spleen' is not in the organ set");
-  expect_error("absent_in_step", replace(valid_lesson(), "pick: {organ: kidney_left}", "pick: {organ: pancreas}"), 10, 5,
-               "organ 'pancreas' is not in the organ set");
-  expect_error("not_in_scene", replace(valid_lesson(), "pick: {organ: kidney_left}", "pick: {organ: stomach}"), 10, 5,
+  expect_error("absent_organ", replace(valid_lesson(), "organs: [liver]", "organs: [liver, stomach]"), 4, 19,
+               "organ 'stomach' is not in the organ set");
+  expect_error("absent_in_step", replace(valid_lesson(), "pick: {organ: kidney_left}", "pick: {organ: stomach}"), 10, 5,
+               "organ 'stomach' is not in the organ set");
+  expect_error("not_in_scene", replace(valid_lesson(), "pick: {organ: kidney_left}", "pick: {organ: pancreas}"), 10, 5,
                "not in this lesson's scene");
 }
 
@@ -189,7 +204,7 @@ TEST(Lesson, QuestionAndSliceSteps) {
 
 TEST(Lesson, ShippedLessonsAndScriptsValidate) {
   for (const std::string name : {"liver_mobility", "organ_quiz", "kidney_anchor", "sectional_anatomy", "kidney_sections",
-                                 "stomach_pull"}) {
+                                 "spleen_pull"}) {
     const Lesson l = load_lesson(test::lessons_dir() + "/" + name + ".yaml");
     for (const std::string kind : {"pass", "fail"}) {
       const DeviceScript s = load_device_script(test::lessons_dir() + "/scripts/" + name + "." + kind + ".yaml");
@@ -217,7 +232,7 @@ TEST(DeviceScript, ErrorsPointAtTheNode) {
             ":6:17: timeline times must increase, got 0.5 after 1");
   EXPECT_EQ(load("device: phantom\ntasks: []\n"), ":1:9: device must be 'scripted' in a device script, got 'phantom'");
   // A script that does not match the lesson's tasks.
-  const Lesson l = load_lesson(test::lessons_dir() + "/organ_quiz.yaml");
+  const Lesson l = load_lesson(test::lessons_dir() + "/sectional_anatomy.yaml");  // pick, question
   const DeviceScript wrong = load_device_script(test::lessons_dir() + "/scripts/kidney_anchor.pass.yaml");
   EXPECT_THROW(check_script_matches(wrong, l), InputError);
   // Every mismatch, in the script's order, each naming both tasks.
@@ -236,7 +251,7 @@ TEST(DeviceScript, ErrorsPointAtTheNode) {
     EXPECT_NE(b, std::string::npos) << w;
     EXPECT_NE(c, std::string::npos) << w;
     EXPECT_TRUE(a < b && b < c) << w;
-    EXPECT_NE(w.find("(1 pick, 2 pick)"), std::string::npos) << w;
+    EXPECT_NE(w.find("(1 pick, 2 answer)"), std::string::npos) << w;
   }
 }
 

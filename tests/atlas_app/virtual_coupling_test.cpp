@@ -163,10 +163,20 @@ Trace replay(AtlasScene& scene, ScriptedDevice& device, int ticks, int every, co
   return tr;
 }
 
+// On a surface model the coupling's local model is the grasped patch's springs (a membrane):
+// these tests run the atlas liver as one (flexion: Hooke springs + the volume constraint, the
+// material of the BodyParts3D atlas they were written on). data/atlas's own organs are
+// `model: solid`: SolidPullIsSmoothAtEveryPhysicsRate and the solid probe test cover them.
+PhysicsSettings membrane_liver() {
+  PhysicsSettings p;
+  p.model = "flexion";
+  return p;
+}
+
 TEST(VirtualCoupling, ReplayedPullGivesTheSameForceEveryRunWithoutJumps) {
   const io::OrganSet set = io::read_organ_set(test::atlas_dir());
   auto run = [&]() {
-    AtlasScene scene(set, {"liver"}, {}, PhysicsSettings{});
+    AtlasScene scene(set, {"liver"}, {}, membrane_liver());
     const int v = scene.view_index("liver");
     const auto verts = scene.global_vertices(v, scene.region_vertices(v, "inferior", 12.0));
     EXPECT_GT(verts.size(), 5u);
@@ -250,7 +260,7 @@ TEST(VirtualCoupling, SolidPullIsSmoothAtEveryPhysicsRate) {
 // along the normal, growing with depth as the coupling and the patch in series.
 TEST(VirtualCoupling, ProbePressedIntoTheLiverPushesBackMoreTheDeeperItGoes) {
   const io::OrganSet set = io::read_organ_set(test::atlas_dir());
-  AtlasScene scene(set, {"liver"}, {}, PhysicsSettings{});
+  AtlasScene scene(set, {"liver"}, {}, membrane_liver());
   const int v = scene.view_index("liver");
   const auto front = scene.global_vertices(v, scene.region_vertices(v, "inferior", 0.0));
   ASSERT_EQ(front.size(), 1u);
@@ -388,6 +398,33 @@ TEST(VirtualCoupling, ProbePressedIntoTheSolidLiverPushesBackMoreTheDeeperItGoes
     }
   }
   EXPECT_GT(last, 0.01);
+}
+
+// A grasp on rigid bone (data/atlas's hip bone, model: rigid) holds nothing: the coupling is not
+// attached, the device's pull moves no vertex of the bone or of the organs, and every force the
+// loop sends is finite (and zero: nothing is held).
+TEST(VirtualCoupling, AGraspOnRigidBoneHoldsNothingAndStaysFinite) {
+  const io::OrganSet set = io::read_organ_set(test::atlas_dir());
+  AtlasScene scene(set, {"kidney_right", "hip_right"}, {}, PhysicsSettings{});
+  const int v = scene.view_index("hip_right");
+  ASSERT_TRUE(scene.is_rigid(v));
+  EXPECT_FALSE(scene.is_rigid(scene.view_index("kidney_right")));
+  const auto verts = scene.global_vertices(v, scene.region_vertices(v, "superior", 15.0));
+  ASSERT_GT(verts.size(), 3u);
+  std::vector<Keyframe> keys;
+  for (int i = 0; i <= 30; ++i) keys.push_back({i * 0.01, {0, 0, 0.010 * std::min(i / 20.0, 1.0)}});
+  ScriptedDevice device(keys, false, 4.0);
+  const Trace t = replay(scene, device, 300, 3, verts);
+  for (const Vec3d& f : t.force) {
+    ASSERT_TRUE(std::isfinite(f[0]) && std::isfinite(f[1]) && std::isfinite(f[2]));
+    EXPECT_EQ(norm(f), 0.0);
+  }
+  const sim::OrganRange& bone = scene.model.organs[static_cast<size_t>(scene.model_organ(v))];
+  for (int32_t g = bone.vert_begin; g < bone.vert_end; ++g) {
+    ASSERT_EQ(scene.state.x[g], scene.model.vert_rest_x[g]);
+    ASSERT_EQ(scene.state.z[g], scene.model.vert_rest_z[g]);
+  }
+  EXPECT_LT(sim::max_displacement(scene.model, scene.state), 1e-9);  // the kidney: rounding only
 }
 
 }  // namespace

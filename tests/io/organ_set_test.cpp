@@ -53,6 +53,77 @@ TEST(OrganSet, WriteThenReadBack) {
   EXPECT_THROW(io::write_organ_set(small_set(), dir.string()), InputError);
 }
 
+// model: rigid (bone) reads, writes back as `{model: rigid, density_kg_m3: ...}`, maps to
+// sim::ModelKind::rigid, and a model override leaves it rigid.
+TEST(OrganSet, RigidOrgansRoundTripAndStayRigidUnderAnOverride) {
+  const fs::path dir = fresh("softatlas_set_rigid");
+  io::OrganSet in = small_set();
+  in.organs[1].name = "sacrum";
+  in.organs[1].material.model = "rigid";
+  in.organs[1].material.density_kg_m3 = 1900;
+  in.organs[1].fixed_vertices.clear();
+  in.connections[0].organ_b = "sacrum";
+  io::write_organ_set(in, dir.string());
+  std::ifstream yaml(dir / "atlas.yaml");
+  const std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("material: {model: rigid, density_kg_m3: 1900}"), std::string::npos) << text;
+  const io::OrganSet set = io::read_organ_set(dir.string());
+  EXPECT_EQ(set.organs[1].material.model, "rigid");
+  EXPECT_TRUE(set.organs[0].regions.empty());
+  EXPECT_EQ(set.organs[1].material.density_kg_m3, 1900);
+  io::SceneOptions opt;
+  opt.model_override = "tmsm";
+  const sim::SceneDesc scene = io::scene_from_organ_set(set, opt);
+  EXPECT_EQ(scene.organs[0].material.model, sim::ModelKind::tmsm);
+  EXPECT_EQ(scene.organs[1].material.model, sim::ModelKind::rigid);
+  const sim::Model m = sim::compile(scene);
+  const sim::OrganRange& bone = m.organs[static_cast<size_t>(sim::find_organ(m, "sacrum"))];
+  EXPECT_EQ(bone.spring_end, bone.spring_begin);
+  // an unknown model names the choices, rigid among them
+  std::string bad = text;
+  bad.replace(bad.find("model: rigid"), 12, "model: bone");
+  std::ofstream(dir / "atlas.yaml") << bad;
+  try {
+    io::read_organ_set(dir.string());
+    FAIL() << "model: bone accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown model 'bone' (expected tmsm, cmsm, nmsm, flexion, solid or rigid)"),
+              std::string::npos) << e.what();
+  }
+}
+
+// Named regions (landmarks) round-trip in file order; a bad point names the file and line.
+TEST(OrganSet, NamedRegionsRoundTripAndBadOnesAreRejected) {
+  const fs::path dir = fresh("softatlas_set_regions");
+  io::OrganSet in = small_set();
+  in.organs[0].regions = {{"gastric_impression", {-24.5, 69, 388.9}}, {"bare_area", {31.25, -16, 384.5}}};
+  io::write_organ_set(in, dir.string());
+  const io::OrganSet set = io::read_organ_set(dir.string());
+  ASSERT_EQ(set.organs[0].regions.size(), 2u);
+  EXPECT_EQ(set.organs[0].regions[0].first, "gastric_impression");
+  EXPECT_EQ(set.organs[0].regions[1].second, (std::array<double, 3>{31.25, -16, 384.5}));
+  EXPECT_NE(set.organs[0].find_region("bare_area"), nullptr);
+  EXPECT_EQ(set.organs[0].find_region("hilum"), nullptr);
+  std::ifstream yaml(dir / "atlas.yaml");
+  std::string text((std::istreambuf_iterator<char>(yaml)), std::istreambuf_iterator<char>());
+  for (const auto& [bad, what] : std::vector<std::pair<std::string, std::string>>{
+           {"bare_area: [31.25, -16]", "region 'bare_area': expected [x, y, z] (mm)"},
+           {"bare_area: [31.25, -16, 1e9]", "region coordinates must be within 1e4 mm"},
+           {"bare_area: [31.25, -16, .nan]", ""},
+           {"bare_area: [31.25, -16, 384.5]\n      gastric_impression: [0, 0, 0]", "duplicate"}}) {
+    std::string t = text;
+    t.replace(t.find("bare_area: [31.25, -16, 384.5]"), 30, bad);
+    std::ofstream(dir / "atlas.yaml") << t;
+    try {
+      io::read_organ_set(dir.string());
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("atlas.yaml:"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  }
+}
+
 TEST(OrganSet, SceneIsInMetresAndHiddenOrgansStayOutUnlessConnected) {
   const fs::path dir = fresh("softatlas_set_scene");
   io::write_organ_set(small_set(), dir.string());

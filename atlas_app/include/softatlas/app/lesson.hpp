@@ -30,7 +30,10 @@ struct CameraSpec {
 
 struct PullTask {
   std::string organ;
-  std::string region;        // anterior | posterior | superior | inferior | left | right
+  // anterior | posterior | superior | inferior | left | right, or a named region of the organ
+  // (the organ set's `regions`, e.g. gastric_impression): load_lesson turns a named region into
+  // its landmark (has_landmark, landmark_mm) and keeps the name here.
+  std::string region;
   bool has_landmark = false;
   Eigen::Vector3d landmark_mm{0, 0, 0};
   double radius_mm = 12.0;   // grasped patch around the region point

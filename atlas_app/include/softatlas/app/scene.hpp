@@ -57,6 +57,8 @@ class AtlasScene {
   std::string system(int view_index) const;
   int view_index(const std::string& organ) const;  // -1 if not in the view
   bool is_context(int view_index) const { return context_[static_cast<size_t>(view_index)]; }
+  // Rigid context (material model rigid, e.g. bone): drawn and picked, never moved by a grasp.
+  bool is_rigid(int view_index) const;
   // Compiled organ of a view organ, -1 if the core left it out (then it is drawn at rest).
   int model_organ(int view_index) const { return model_organ_[static_cast<size_t>(view_index)]; }
 

@@ -20,7 +20,7 @@ namespace softatlas::io {
 // Material of one organ as written in atlas.yaml (`material:` map). Units in the names.
 // Any field not given keeps the default below. See docs/physics.md for each parameter's paper.
 struct MaterialSpec {
-  std::string model = "solid";       // solid | nmsm | tmsm | cmsm | flexion (solid: the evidence, docs/physics.md)
+  std::string model = "solid";       // solid | rigid | nmsm | tmsm | cmsm | flexion (solid: the evidence, docs/physics.md)
   double young_modulus_pa = 4000.0;  // E in eq 9 of paper 000 (liver: a few kPa)
   double thickness_m = 1e-3;         // t in eq 9 (paper 000 uses 1e-3 m)
   double density_kg_m3 = 1060.0;     // organ mass = density * enclosed volume, spread by eq 8
@@ -51,6 +51,14 @@ struct OrganEntry {
   int face_budget = 0;                // 0 if none was set
   MaterialSpec material;
   std::vector<int32_t> fixed_vertices;  // held in place (anchored to the body wall)
+  // Named regions (landmarks): name -> a point on or near the organ (mm, RAS), in file order,
+  // e.g. gastric_impression of the liver. Lessons grasp there with `region: NAME`.
+  std::vector<std::pair<std::string, std::array<double, 3>>> regions;
+  const std::array<double, 3>* find_region(const std::string& region) const {
+    for (const auto& [n, p] : regions)
+      if (n == region) return &p;
+    return nullptr;
+  }
   TriMesh mesh;                       // loaded by read_organ_set (mm, RAS)
 };
 

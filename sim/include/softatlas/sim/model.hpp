@@ -24,6 +24,7 @@ enum class ModelKind : int32_t {
   nmsm = 2,     // elastica springs (000 eq 5, 000 eq 6, 000 eq 7)
   flexion = 3,  // Hooke + dihedral flexion springs + volume constraint (paper 003)
   solid = 4,    // volumetric lattice, corotational FEM by projective dynamics (sim/solid.hpp)
+  rigid = 5,    // fixed context (bone): drawn, picked, anchors connections; never moves or steps
 };
 const char* to_string(ModelKind kind);
 bool parse_model_kind(const std::string& text, ModelKind& out);
@@ -202,6 +203,10 @@ struct Model {
   // solid organs (sim/solid.hpp): their surface vertices follow the lattice, not an integrator
   std::vector<SolidBody> solids;
   std::vector<int32_t> organ_solid;    // per organ: index into solids, -1 for surface models
+  // rigid organs (ModelKind::rigid): every vertex fixed, no springs, asleep for good. Their
+  // vertices that end a connection spring get forces they never consume; the explicit step
+  // clears just these after integrating (so a rigid organ costs no per-vertex work).
+  std::vector<int32_t> rigid_conn_verts;
 };
 
 // The tool: one interaction at a time (force pulling or position attachment).
