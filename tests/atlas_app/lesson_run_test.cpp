@@ -76,7 +76,7 @@ TEST(LessonRunLongText, LinesOfAnyLengthPlay) {
   lesson = replace(lesson, "organ_set: ../atlas", "organ_set: " + test::atlas_dir());
   lesson = replace(lesson, "lesson: \"Kidneys: retroperitoneal, seen in a coronal cut\"", "lesson: \"" + words + "\"");
   lesson = replace(lesson, "ask: \"Which of these organs is retroperitoneal?\"", "ask: \"" + words + "\"");
-  lesson = replace(lesson, "choices: [Liver, Stomach, Kidney]", "choices: [Liver, Stomach, " + long_choice + "]");
+  lesson = replace(lesson, "choices: [Liver, Spleen, Kidney]", "choices: [Liver, Spleen, " + long_choice + "]");
   lesson = replace(lesson, "answer: Kidney", "answer: " + long_choice);
   std::string script = slurp(test::lessons_dir() + "/scripts/kidney_sections.pass.yaml");
   script = replace(script, "choice: Kidney}", "choice: " + long_choice + "}");
