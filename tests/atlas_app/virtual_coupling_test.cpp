@@ -253,6 +253,23 @@ TEST(VirtualCoupling, SolidPullIsSmoothAtEveryPhysicsRate) {
   }
 }
 
+// A probe whose home is the liver's inferior vertex, not touching: after one physics step the
+// published model has the surface there (its plane and the patch's stiffness). False if the
+// atlas has no single inferior vertex or nothing was published.
+bool free_probe_at_liver_front(AtlasScene& scene, CouplingPhysics& physics, LocalModel& out) {
+  const int v = scene.view_index("liver");
+  const auto front = scene.global_vertices(v, scene.region_vertices(v, "inferior", 0.0));
+  if (front.size() != 1u) return false;
+  const size_t g = static_cast<size_t>(front[0]);
+  physics.probe({scene.state.x[g], scene.state.y[g], scene.state.z[g]});
+  ToolCommand free_cmd;
+  free_cmd.engaged = true;
+  physics.apply(scene.model, scene.state, free_cmd);
+  sim::step(scene.model, scene.state, scene.work);
+  out = physics.local_model(scene.model, scene.state, scene.work);
+  return out.surface;
+}
+
 // The probe against the liver's surface as the physics publishes it before contact (the plane
 // of the nearest surface and the linearised stiffness of the patch there, from the liver's
 // springs and dampers): pressed 2, 4, ... 10 mm below the surface, the tip is held by the
@@ -261,19 +278,9 @@ TEST(VirtualCoupling, SolidPullIsSmoothAtEveryPhysicsRate) {
 TEST(VirtualCoupling, ProbePressedIntoTheLiverPushesBackMoreTheDeeperItGoes) {
   const io::OrganSet set = io::read_organ_set(test::atlas_dir());
   AtlasScene scene(set, {"liver"}, {}, membrane_liver());
-  const int v = scene.view_index("liver");
-  const auto front = scene.global_vertices(v, scene.region_vertices(v, "inferior", 0.0));
-  ASSERT_EQ(front.size(), 1u);
-  const size_t g = static_cast<size_t>(front[0]);
-  const Vec3d surf{scene.state.x[g], scene.state.y[g], scene.state.z[g]};
   CouplingPhysics physics(scene.model);
-  physics.probe(surf);
-  ToolCommand free_cmd;
-  free_cmd.engaged = true;
-  physics.apply(scene.model, scene.state, free_cmd);
-  sim::step(scene.model, scene.state, scene.work);
-  LocalModel m = physics.local_model(scene.model, scene.state, scene.work);
-  ASSERT_TRUE(m.surface);
+  LocalModel m;
+  ASSERT_TRUE(free_probe_at_liver_front(scene, physics, m));
   ASSERT_FALSE(m.valid);  // not touching yet
   EXPECT_LT(norm(m.surface_m), 1e-4);  // the vertex itself (it barely moved in one step)
   const Vec3d n = m.normal;
@@ -344,22 +351,9 @@ TEST(VirtualCoupling, ProbePressedIntoTheSolidLiverPushesBackMoreTheDeeperItGoes
   PhysicsSettings ps;
   ps.model = "solid";
   AtlasScene scene(set, {"liver"}, {}, ps);
-  const int v = scene.view_index("liver");
-  const auto front = scene.global_vertices(v, scene.region_vertices(v, "inferior", 0.0));
-  ASSERT_EQ(front.size(), 1u);
-  const size_t g = static_cast<size_t>(front[0]);
-  const Vec3d surf{scene.state.x[g], scene.state.y[g], scene.state.z[g]};
   CouplingPhysics physics(scene.model);
-  physics.probe(surf);
-  // the outward normal there, from one physics step's published surface
-  {
-    ToolCommand free_cmd;
-    free_cmd.engaged = true;
-    physics.apply(scene.model, scene.state, free_cmd);
-  }
-  sim::step(scene.model, scene.state, scene.work);
-  const LocalModel first = physics.local_model(scene.model, scene.state, scene.work);
-  ASSERT_TRUE(first.surface);
+  LocalModel first;  // the outward normal there, from one physics step's published surface
+  ASSERT_TRUE(free_probe_at_liver_front(scene, physics, first));
   double Kn = 0;
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) Kn += first.normal[r] * first.K_N_m[3 * r + c] * first.normal[c];
