@@ -168,7 +168,7 @@ int bench_sim(const BenchSimArgs& a) {
 struct SimArgs {
   std::vector<std::string> inputs, shown;
   std::string model_name, integrator_name = "semi-implicit";
-  double dt = 1e-3;
+  double dt = 0.0;  // the models' own (sim::recommended_dt_s)
   bool explain_flag = false, gravity = false, no_guard = false;
 };
 
@@ -230,9 +230,10 @@ CLI::App* add_sim(CLI::App& root, cli::Status* status) {
   app->add_option("inputs", a->inputs, "an organ-set folder, or mesh files");
   app->add_flag("--explain", a->explain_flag, "print the compiled plan");
   app->add_option("--show", a->shown, "organs to show (default: all)")->delimiter(',');
-  app->add_option("--model", a->model_name, "override every organ's model: tmsm | cmsm | nmsm | flexion");
+  app->add_option("--model", a->model_name, "override every organ's model: solid | nmsm | tmsm | cmsm | flexion");
   app->add_option("--integrator", a->integrator_name, "verlet | semi-implicit | implicit");
-  app->add_option("--dt", a->dt, "time step (s)")->check(io::finite_in(1e-7, 0.1));
+  app->add_option("--dt", a->dt, "time step (s; default: the models' own, 8 ms all solid, else 1 ms)")
+      ->check(io::finite_in(1e-7, 0.1));
   app->add_flag("--gravity", a->gravity, "gravity on");
   app->add_flag("--no-guard", a->no_guard, "turn the stability guard off");
   app->callback([app, a, status] {

@@ -476,6 +476,10 @@ BuildResult build_organ_set(const BuildOptions& o) {
     e.mesh_file = "organs/" + j.name + ".ply";
     e.face_budget = j.budget;
     e.mesh = r.mesh;
+    if (label_group(j.name) == "bones") {  // rigid context: drawn, picked, anchors springs
+      e.material.model = "rigid";
+      e.material.density_kg_m3 = 1900;  // cortical + trabecular bone
+    }
     set.organs.push_back(std::move(e));
   }
   quality["organs"] = qorgans;
@@ -493,6 +497,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
   // Anchors, for organ sets in patient RAS (a CT build; meshes keep their own frame).
   if (!mesh_mode && o.connect.anchor_count > 0) {
     for (auto& e : set.organs) {
+      if (e.material.model == "rigid") continue;  // a bone never moves: nothing to anchor
       e.fixed_vertices = io::extreme_vertices(e.mesh, {0, -1, 0}, o.connect.anchor_count, o.connect.anchor_spacing_mm);
       quality["organs"][e.name]["anchors"] = e.fixed_vertices.size();
     }

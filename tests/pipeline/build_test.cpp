@@ -23,6 +23,7 @@
 
 namespace softatlas::pipeline {
 namespace {
+using test::abdomen;
 using test::chest;
 namespace fs = std::filesystem;
 
@@ -146,6 +147,31 @@ void add_caret_label_table(const std::string& path, const std::map<int, std::str
 // numbering), and `--organs heart` finds it by name.
 // A 0/1 mask given without a name would build TotalSegmentator's label 1 (spleen): an error that
 // says how to name it, and nothing written.
+// Bones go into the organ set as rigid context (issue 14): `--organs liver,bones` on the abdomen
+// slab writes the vertebrae with material {model: rigid}, no anchors of their own, the liver
+// solid and anchored; connection springs tie the liver to bone only where they touch.
+TEST(Build, BonesAreRigidContext) {
+  const std::string out = (fs::temp_directory_path() / "softatlas-build-bones").string();
+  fs::remove_all(out);
+  ASSERT_EQ(cli_main({"build", abdomen("ct_from_dicom.nii.gz"), "--labels", abdomen("example_seg_dicom.nii.gz"),
+                      "--organs", "liver,bones", "-q", "-o", out}),
+            0);
+  const io::OrganSet set = io::read_organ_set(out);
+  int bones = 0;
+  for (const io::OrganEntry& e : set.organs) {
+    if (e.name == "liver") {
+      EXPECT_EQ(e.material.model, "solid");
+      EXPECT_FALSE(e.fixed_vertices.empty());
+      continue;
+    }
+    ++bones;
+    EXPECT_EQ(e.material.model, "rigid") << e.name;
+    EXPECT_TRUE(e.fixed_vertices.empty()) << e.name;
+  }
+  EXPECT_GE(bones, 3);
+  fs::remove_all(out);
+}
+
 TEST(Build, BareMaskWithoutANameIsAnError) {
   const std::string out = (fs::temp_directory_path() / "softatlas-test-bare-mask-set").string();
   fs::remove_all(out);
