@@ -122,7 +122,7 @@ int physics_demo(const DemoArgs& a) {
   struct Variant { sim::ModelKind kind; double volume; const char* label; };
   const Variant variants[] = {{sim::ModelKind::tmsm, 0.0, "tmsm"}, {sim::ModelKind::cmsm, 0.0, "cmsm"},
                               {sim::ModelKind::nmsm, 0.0, "nmsm"}, {sim::ModelKind::nmsm, 0.5, "nmsm+vol"},
-                              {sim::ModelKind::flexion, 0.5, "flexion"}};
+                              {sim::ModelKind::flexion, 0.5, "flexion"}, {sim::ModelKind::solid, 0.0, "solid"}};
   for (const Variant& var : variants) {
     const sim::ModelKind kind = var.kind;
     sim::SceneDesc scene;
