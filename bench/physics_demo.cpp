@@ -49,7 +49,7 @@ std::string svg_picture(const io::TriMesh& rest, const std::vector<DemoRun>& run
   for (const DemoRun& r : runs) grow(r.deformed);
   const double W = 360, H = 300, pad = 20;
   const double sc = std::min((W - 2 * pad) / (hi[0] - lo[0]), (H - 2 * pad - 30) / (hi[1] - lo[1]));
-  const char* colours[] = {"#1f77b4", "#ff7f0e", "#d62728", "#9467bd", "#2ca02c"};
+  const char* colours[] = {"#1f77b4", "#ff7f0e", "#d62728", "#9467bd", "#2ca02c", "#8c564b"};
   std::ostringstream os;
   os << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W * runs.size() << "' height='" << H
      << "' font-family='sans-serif' font-size='13'>\n<rect width='100%' height='100%' fill='white'/>\n";
@@ -72,7 +72,7 @@ std::string svg_picture(const io::TriMesh& rest, const std::vector<DemoRun>& run
       os << "'/>\n";
     };
     edges(rest.vertices, "#bbbbbb", 0.5);
-    edges(runs[k].deformed, colours[k % 5], 0.6);
+    edges(runs[k].deformed, colours[k % (sizeof colours / sizeof colours[0])], 0.6);
     for (int32_t v : face) {
       double x, y;
       px(runs[k].deformed, v, x, y);
