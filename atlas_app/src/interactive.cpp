@@ -421,7 +421,10 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
     }
     viewer->render([&] {
       ImGui::SetNextWindowPos(ImVec2(static_cast<float>(ctx->width()) - 330, 10), ImGuiCond_FirstUseEver);
-      ImGui::SetNextWindowSize(ImVec2(320, 520), ImGuiCond_FirstUseEver);
+      // As tall as the window: with ten structures in the organ list the Stats section (the
+      // physics real-time factor) was below the panel's fold at 520 px.
+      ImGui::SetNextWindowSize(ImVec2(320, std::max(520.0f, static_cast<float>(ctx->height()) - 20.0f)),
+                               ImGuiCond_FirstUseEver);
       ImGui::Begin("SoftAtlas");
       if (ImGui::CollapsingHeader("Organs", ImGuiTreeNodeFlags_DefaultOpen)) {
         // Grouped by body system (digestive, urinary, ...), display names; hover a row for the
