@@ -430,7 +430,7 @@ TriMesh read_ply(const std::string& path) {
     if (e == std::string::npos) e = data.size();
     line = data.substr(pos, e - pos);
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    pos = e + 1;
+    pos = std::min(e + 1, data.size());  // a last line without '\n' ends at the end, not past it
     ++line_no;
     return true;
   };
