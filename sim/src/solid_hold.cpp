@@ -43,17 +43,9 @@ double solid_hold_stiffness(const Model& m, const Work& w, const std::vector<int
       total += ones_quadratic(w.solid[bi].grasp_chol.data(), k);  // the step's own factor
       continue;
     }
-    // Not held yet (a probe's patch before the touch): the same Schur complement, built here.
-    Eigen::MatrixXd Ct = Eigen::MatrixXd::Zero(b.nnode, k);
-    for (int32_t j = 0; j < k; ++j) {
-      const int32_t* n = &b.tets[4 * b.embed_tet[local[j]]];
-      for (int i = 0; i < 4; ++i) Ct(n[i], j) += b.embed_w[4 * local[j] + i];
-    }
-    Eigen::MatrixXd S = Ct.transpose() * b.factor->ldlt.solve(Ct);
-    S.diagonal().array() += 1e-10 * S.diagonal().maxCoeff();  // as the step's (solid_step.cpp)
-    const Eigen::LLT<Eigen::MatrixXd> llt(S);
-    if (llt.info() != Eigen::Success) continue;
-    const Eigen::MatrixXd L = llt.matrixL();
+    // Not held yet (a probe's patch before the touch): the step's Schur complement, built here.
+    Eigen::MatrixXd Z, L;
+    if (!grasp_schur(b, local, Z, L)) continue;
     total += ones_quadratic(L.data(), k);
   }
   return std::isfinite(total) ? total : 0.0;

@@ -372,6 +372,22 @@ std::vector<SolidWork> make_solid_work(const Model& m) {
   return out;
 }
 
+bool grasp_schur(const SolidBody& b, const std::vector<int32_t>& local, Eigen::MatrixXd& Z, Eigen::MatrixXd& L) {
+  const int32_t k = static_cast<int32_t>(local.size());
+  Eigen::MatrixXd Ct = Eigen::MatrixXd::Zero(b.nnode, k);
+  for (int32_t j = 0; j < k; ++j) {
+    const int32_t* n = &b.tets[4 * b.embed_tet[local[j]]];
+    for (int i = 0; i < 4; ++i) Ct(n[i], j) += b.embed_w[4 * local[j] + i];
+  }
+  Z = b.factor->ldlt.solve(Ct);
+  Eigen::MatrixXd S = Ct.transpose() * Z;
+  const double eps = 1e-10 * S.diagonal().maxCoeff();
+  S.diagonal().array() += eps;
+  const Eigen::LLT<Eigen::MatrixXd> llt(S);
+  L = llt.matrixL();
+  return llt.info() == Eigen::Success;
+}
+
 namespace {
 
 // Position and velocity of global vertex v: solid organs' from their lattice, others' from the state.
@@ -411,17 +427,8 @@ void spread(const SolidBody& b, int32_t v, const double f[3], std::vector<double
 void prepare_grasp(const SolidBody& b, SolidWork& w, const std::vector<int32_t>& local) {
   const int32_t k = static_cast<int32_t>(local.size());
   w.grasp_verts = local;
-  Eigen::MatrixXd Ct = Eigen::MatrixXd::Zero(b.nnode, k);
-  for (int32_t j = 0; j < k; ++j) {
-    const int32_t* n = &b.tets[4 * b.embed_tet[local[j]]];
-    for (int i = 0; i < 4; ++i) Ct(n[i], j) += b.embed_w[4 * local[j] + i];
-  }
-  const Eigen::MatrixXd Z = b.factor->ldlt.solve(Ct);
-  Eigen::MatrixXd S = Ct.transpose() * Z;
-  const double eps = 1e-10 * S.diagonal().maxCoeff();
-  S.diagonal().array() += eps;
-  Eigen::LLT<Eigen::MatrixXd> llt(S);
-  const Eigen::MatrixXd Lf = llt.matrixL();
+  Eigen::MatrixXd Z, Lf;
+  grasp_schur(b, local, Z, Lf);
   w.grasp_z.assign(Z.data(), Z.data() + Z.size());
   w.grasp_chol.assign(Lf.data(), Lf.data() + Lf.size());
   w.grasp_lambda.assign(3 * static_cast<size_t>(k), 0.0);
