@@ -4,10 +4,11 @@
 //     x = argmin 1/(2 h^2) |x - s|_M^2 + sum_e W_e(x) - f_ext . x,   s = x_n + h v_n
 //   constraint energy                   Bouaziz et al. 2014 eq 9: w/2 |G_e x - p_e|^2, p_e the
 //                                       projection of the element's F onto its constraint set
-//   strain (corotational, shear part)   p = R, w = 2 mu V      (mu |F - R|^2)
-//   volume                              p = F + t R, det(R^T F + t I) = 1, w = 3 lambda V
+//   strain (corotational, per tet)      p = R, w = 2 mu V      (mu |F - R|^2)
+//   volume (per lattice cell)           p = F_c + t R_c, det(R_c^T F_c + t I) = 1, w = 3 lambda V_c
 //                                       (3 lambda/2 t^2; to first order Mueller & Gross 2004's
-//                                       lambda/2 (tr(R^T F) - 3)^2)
+//                                       lambda/2 (tr(R^T F) - 3)^2), F_c the mean of the cell's 6
+//                                       tetrahedra (mean dilatation: no volumetric locking)
 //   connection springs                  Liu et al. 2013 spring projection, other end held
 //   Rayleigh damping beta K, rotated    p = F_n + R - R_n, w = beta/h 2 mu V
 //   global step                         Bouaziz et al. 2014 eq 12:
@@ -42,6 +43,12 @@ constexpr double kDefaultDampingRatio = 0.5;  // Rayleigh ratio at the lowest sh
 constexpr int kRotationIterations = 1;   // warm-started rotation-fit iterations per local step
 constexpr int kSceneNodes = 1500;       // lattice nodes of all solid organs of a scene together
 constexpr int kMinNodes = 80;           // the smallest organ's lattice when the scene total shares
+constexpr int kMaxThinNodes = 400;      // most nodes the thickness rule may give one organ
+constexpr int kSceneThinNodes = 4000;   // ... and all organs of a scene together (real time, docs/physics.md)
+// Cells no larger than kThicknessCell * V / A: a long tube of diameter d (V / A = d / 4) gets 3
+// cells across, a slab of thickness t (V / A = t / 2) 1.5. Coarser lattices of thin organs
+// (aorta, veins, pancreas: 1-2 cells across) lost 10-120 % of their volume under a 30 mm pull.
+constexpr double kThicknessCell = 4.0 / 3.0;
 
 Mat3 quat_matrix(const double* q) {
   const double w = q[0], x = q[1], y = q[2], z = q[3];
@@ -141,35 +148,94 @@ void add_laplacian(const SolidBody& b, const std::vector<double>& w, Triplets& T
   }
 }
 
+// sum_c w_c G_c^T G_c of the cells' volume constraints (scalar, 8 x 8 per cell).
+void add_cell_laplacian(const SolidBody& b, Triplets& T) {
+  for (int32_t c = 0; c < b.ncell; ++c) {
+    const int32_t* n = &b.cell_nodes[8 * c];
+    const double* g = &b.cell_grad[24 * c];
+    for (int i = 0; i < 8; ++i)
+      for (int j = 0; j < 8; ++j)
+        T.emplace_back(n[i], n[j], b.w_volume[c] * (g[3 * i] * g[3 * j] + g[3 * i + 1] * g[3 * j + 1] + g[3 * i + 2] * g[3 * j + 2]));
+  }
+}
+
+// F_c = sum_j x_j g_j^T of cell c at positions x.
+Mat3 cell_deformation(const SolidBody& b, int32_t c, const double* x) {
+  Mat3 F = Mat3::Zero();
+  const int32_t* n = &b.cell_nodes[8 * c];
+  const double* g = &b.cell_grad[24 * c];
+  for (int i = 0; i < 8; ++i) {
+    const double* p = x + 3 * n[i];
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) F(r, k) += p[r] * g[3 * i + k];
+  }
+  return F;
+}
+
 // Lowest nonzero shear frequency of the free lattice: L_mu u = omega^2 M u with the scalar
-// Laplacian of weight mu V f, by inverse iteration M-orthogonal to the constants.
-double lowest_shear_mode(const SolidBody& b, double mu) {
+// Laplacian of weight mu V f, by inverse iteration M-orthogonal to the constants of each
+// connected piece (an organ in two pieces, as the portal and splenic veins cut by a CT slab, has a
+// zero mode per piece; it gave omega_1 = 0 and no damping).
+double lowest_shear_mode(const SolidBody& b) {
   std::vector<double> w(b.ntet);
   for (int32_t t = 0; t < b.ntet; ++t) w[t] = 0.5 * b.w_strain[t];  // 2 mu V f / 2
-  (void)mu;
   Triplets T;
   add_laplacian(b, w, T);
   Eigen::SparseMatrix<double> L(b.nnode, b.nnode);
   L.setFromTriplets(T.begin(), T.end());
   const Eigen::Map<const Eigen::VectorXd> M(b.mass.data(), b.nnode);
+  // connected pieces (union-find over the tetrahedra)
+  std::vector<int32_t> root(b.nnode);
+  for (int32_t i = 0; i < b.nnode; ++i) root[i] = i;
+  const auto find = [&](int32_t i) {
+    while (root[i] != i) i = root[i] = root[root[i]];
+    return i;
+  };
+  for (int32_t t = 0; t < b.ntet; ++t)
+    for (int i = 1; i < 4; ++i) root[find(b.tets[4 * t + i])] = find(b.tets[4 * t]);
+  std::vector<int32_t> piece(b.nnode);
+  for (int32_t i = 0; i < b.nnode; ++i) piece[i] = find(i);
+  std::vector<double> pm(b.nnode, 0.0), pu(b.nnode, 0.0);
+  const auto remove_constants = [&](Eigen::VectorXd& u) {
+    std::fill(pm.begin(), pm.end(), 0.0), std::fill(pu.begin(), pu.end(), 0.0);
+    for (int32_t i = 0; i < b.nnode; ++i) pm[piece[i]] += M[i], pu[piece[i]] += M[i] * u[i];
+    for (int32_t i = 0; i < b.nnode; ++i) u[i] -= pm[piece[i]] > 0 ? pu[piece[i]] / pm[piece[i]] : 0.0;
+  };
   const double shift = 1e-6 * L.diagonal().sum() / M.sum();
   Eigen::SparseMatrix<double> S = L;
   for (int i = 0; i < b.nnode; ++i) S.coeffRef(i, i) += shift * M[i];
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(S);
   if (ldlt.info() != Eigen::Success) return 0.0;
-  Eigen::VectorXd u(b.nnode);
-  const Eigen::Map<const Eigen::VectorXd> X(b.rest.data(), b.nnode, 1);  // a non-constant start
+  Eigen::VectorXd u(b.nnode);  // a non-constant start
   for (int i = 0; i < b.nnode; ++i) u[i] = b.rest[3 * i] + 0.3 * b.rest[3 * i + 1] + 0.1 * b.rest[3 * i + 2];
-  (void)X;
-  const double mt = M.sum();
   for (int it = 0; it < 40; ++it) {
-    u.array() -= M.dot(u) / mt;                    // remove the constant (rigid translation)
-    u /= std::sqrt(u.dot(M.cwiseProduct(u)));
+    remove_constants(u);  // the rigid translations of each piece
+    const double n = std::sqrt(u.dot(M.cwiseProduct(u)));
+    if (!(n > 0)) return 0.0;
+    u /= n;
     u = ldlt.solve(M.cwiseProduct(u)).eval();
   }
-  u.array() -= M.dot(u) / mt;
+  remove_constants(u);
   const double num = u.dot(L * u), den = u.dot(M.cwiseProduct(u));
   return den > 0 ? std::sqrt(std::max(num / den, 0.0)) : 0.0;
+}
+
+// The organ's lattice: the scene share's node budget, refined for thin organs (kThicknessCell)
+// up to max_nodes nodes.
+SolidLattice organ_lattice(const std::vector<double>& V, const std::vector<int32_t>& F, double volume_m3,
+                           int budget, int max_nodes) {
+  SolidLattice L = solid_lattice_budget(V, F, budget);
+  double area = 0.0;
+  for (size_t f = 0; f + 2 < F.size(); f += 3) {
+    const Eigen::Vector3d a(&V[3 * F[f]]), b(&V[3 * F[f + 1]]), c(&V[3 * F[f + 2]]);
+    area += 0.5 * (b - a).cross(c - a).norm();
+  }
+  if (!(area > 0) || !(volume_m3 > 0)) return L;
+  const double h_thin = kThicknessCell * volume_m3 / area;
+  if (L.spacing_m <= h_thin || L.mesh.nnode() >= max_nodes) return L;
+  SolidLattice thin = solid_lattice(V, F, h_thin);
+  if (thin.mesh.nnode() > max_nodes) thin = solid_lattice_budget(V, F, max_nodes);
+  return thin.spacing_m < L.spacing_m ? thin : L;
 }
 
 }  // namespace
@@ -185,14 +251,55 @@ void compile_solids(const SceneDesc& scene, Model& m) {
   double solid_volume = 0.0;
   for (const OrganRange& r : m.organs)
     if (r.model == ModelKind::solid) solid_volume += std::fabs(r.rest_volume_m3);
+  const auto budget_of = [&](const OrganRange& r, const Material& mat) {
+    const double share = solid_volume > 0 ? std::fabs(r.rest_volume_m3) / solid_volume : 1.0;
+    return mat.solid_nodes > 0 ? mat.solid_nodes
+                               : std::clamp(static_cast<int>(std::lround(kSceneNodes * share)), kMinNodes, kDefaultNodes);
+  };
+  const auto surface_of = [&](const OrganRange& r, std::vector<double>& V, std::vector<int32_t>& F) {
+    const int32_t nv = r.vert_end - r.vert_begin;
+    V.resize(3 * static_cast<size_t>(nv));
+    for (int32_t v = 0; v < nv; ++v)
+      V[3 * v] = m.vert_rest_x[r.vert_begin + v], V[3 * v + 1] = m.vert_rest_y[r.vert_begin + v],
+             V[3 * v + 2] = m.vert_rest_z[r.vert_begin + v];
+    F.assign(m.face_vert.begin() + 3 * r.face_begin, m.face_vert.begin() + 3 * r.face_end);
+    for (int32_t& f : F) f -= r.vert_begin;
+  };
+  // Lattices: the share's, refined for thin organs; when the refinements together pass
+  // kSceneThinNodes, each refined organ gets the same fraction of what it asked for.
+  std::vector<SolidLattice> lattice(norg);
+  std::vector<uint8_t> refined(norg, 0);
+  int64_t plain_nodes = 0, thin_nodes = 0;
   for (int32_t o = 0; o < norg; ++o) {
     const OrganRange& r = m.organs[o];
     if (r.model != ModelKind::solid) continue;
     const Material& mat = scene.organs[r.source_index].material;
-    const double share = solid_volume > 0 ? std::fabs(r.rest_volume_m3) / solid_volume : 1.0;
-    const int budget = mat.solid_nodes > 0 ? mat.solid_nodes
-                                           : std::clamp(static_cast<int>(std::lround(kSceneNodes * share)), kMinNodes,
-                                                        kDefaultNodes);
+    std::vector<double> V;
+    std::vector<int32_t> F;
+    surface_of(r, V, F);
+    const int budget = budget_of(r, mat);
+    lattice[o] = mat.solid_nodes != 0 ? solid_lattice_budget(V, F, budget)
+                                      : organ_lattice(V, F, std::fabs(r.rest_volume_m3), budget, kMaxThinNodes);
+    refined[o] = mat.solid_nodes == 0 && lattice[o].mesh.nnode() > budget;
+    (refined[o] ? thin_nodes : plain_nodes) += lattice[o].mesh.nnode();
+  }
+  if (plain_nodes + thin_nodes > kSceneThinNodes && thin_nodes > 0) {
+    const double scale = std::max(0.0, static_cast<double>(kSceneThinNodes - plain_nodes)) / static_cast<double>(thin_nodes);
+    for (int32_t o = 0; o < norg; ++o) {
+      if (!refined[o]) continue;
+      const OrganRange& r = m.organs[o];
+      std::vector<double> V;
+      std::vector<int32_t> F;
+      surface_of(r, V, F);
+      const int budget = budget_of(r, scene.organs[r.source_index].material);
+      const int nodes = std::max(budget, static_cast<int>(scale * lattice[o].mesh.nnode()));
+      lattice[o] = organ_lattice(V, F, std::fabs(r.rest_volume_m3), budget, nodes);
+    }
+  }
+  for (int32_t o = 0; o < norg; ++o) {
+    const OrganRange& r = m.organs[o];
+    if (r.model != ModelKind::solid) continue;
+    const Material& mat = scene.organs[r.source_index].material;
     // the surface passes do not apply: the lattice carries the organ
     m.organs[o].volume_stiffness = 0.0, m.organs[o].compensation_iterations = 0;
     m.organs[o].curvature = false, m.organs[o].damping = false;
@@ -207,13 +314,10 @@ void compile_solids(const SceneDesc& scene, Model& m) {
       throw InputError(where, "solid_nodes and solid_iterations must be >= 0");
 
     const int32_t nv = r.vert_end - r.vert_begin;
-    std::vector<double> V(3 * static_cast<size_t>(nv));
-    for (int32_t v = 0; v < nv; ++v)
-      V[3 * v] = m.vert_rest_x[r.vert_begin + v], V[3 * v + 1] = m.vert_rest_y[r.vert_begin + v],
-             V[3 * v + 2] = m.vert_rest_z[r.vert_begin + v];
-    std::vector<int32_t> F(m.face_vert.begin() + 3 * r.face_begin, m.face_vert.begin() + 3 * r.face_end);
-    for (int32_t& f : F) f -= r.vert_begin;
-    const SolidLattice L = solid_lattice_budget(V, F, budget);
+    std::vector<double> V;
+    std::vector<int32_t> F;
+    surface_of(r, V, F);
+    const SolidLattice& L = lattice[o];
 
     SolidBody b;
     b.organ = o;
@@ -235,7 +339,10 @@ void compile_solids(const SceneDesc& scene, Model& m) {
 
     b.grad.resize(12 * static_cast<size_t>(b.ntet));
     b.w_strain.resize(b.ntet);
-    b.w_volume.resize(b.ntet);
+    b.ncell = b.ntet / 6;
+    b.w_volume.assign(b.ncell, 0.0);
+    b.cell_nodes.assign(8 * static_cast<size_t>(b.ncell), -1);
+    b.cell_grad.assign(24 * static_cast<size_t>(b.ncell), 0.0);
     b.mass.assign(b.nnode, 0.0);
     for (int32_t t = 0; t < b.ntet; ++t) {
       const int32_t* n = &b.tets[4 * t];
@@ -251,8 +358,17 @@ void compile_solids(const SceneDesc& scene, Model& m) {
       }
       const double f = L.tet_fraction[t];
       b.w_strain[t] = 2.0 * mu * vol * f;
-      b.w_volume[t] = 3.0 * lambda * vol * f;
+      b.w_volume[t / 6] += 3.0 * lambda * vol * f;
       for (int i = 0; i < 4; ++i) b.mass[n[i]] += 0.25 * vol * f;
+      // the cell's mean gradient: 1/6 of each of its (equal-volume) tetrahedra's
+      int32_t* cn = &b.cell_nodes[8 * (t / 6)];
+      double* cg = &b.cell_grad[24 * (t / 6)];
+      for (int i = 0; i < 4; ++i) {
+        int slot = 0;
+        while (cn[slot] >= 0 && cn[slot] != n[i]) ++slot;  // a cell has 8 nodes
+        cn[slot] = n[i];
+        for (int c = 0; c < 3; ++c) cg[3 * slot + c] += g[3 * i + c] / 6.0;
+      }
     }
     const double organ_mass = mat.total_mass_kg > 0 ? mat.total_mass_kg
                                                      : mat.density_kg_m3 * enclosed_volume_local(V, F);
@@ -261,14 +377,15 @@ void compile_solids(const SceneDesc& scene, Model& m) {
     for (double& mi : b.mass) mi *= organ_mass / msum;
 
     // Rayleigh stiffness-proportional damping: zeta = beta omega / 2 at the lowest shear mode.
-    b.omega1_rad_s = lowest_shear_mode(b, mu);
+    b.omega1_rad_s = lowest_shear_mode(b);
     b.beta_s = b.omega1_rad_s > 0 ? 2.0 * b.damping_ratio / b.omega1_rad_s : 0.0;
 
     // System matrix.
     std::vector<double> w(b.ntet);
-    for (int32_t t = 0; t < b.ntet; ++t) w[t] = b.w_strain[t] * (1.0 + b.beta_s / h) + b.w_volume[t];
+    for (int32_t t = 0; t < b.ntet; ++t) w[t] = b.w_strain[t] * (1.0 + b.beta_s / h);
     Triplets T;
     add_laplacian(b, w, T);
+    add_cell_laplacian(b, T);
     double diag_max = 0.0;
     {
       std::vector<double> diag(b.nnode, 0.0);
@@ -353,6 +470,12 @@ std::vector<SolidWork> make_solid_work(const Model& m) {
     for (int32_t t = 0; t < b.ntet; ++t) {
       w.quat[4 * t] = 1.0;
       w.rot[9 * t] = w.rot[9 * t + 4] = w.rot[9 * t + 8] = 1.0;
+    }
+    w.cell_quat.assign(4 * static_cast<size_t>(b.ncell), 0.0);
+    w.cell_rot.assign(9 * static_cast<size_t>(b.ncell), 0.0);
+    for (int32_t c = 0; c < b.ncell; ++c) {
+      w.cell_quat[4 * c] = 1.0;
+      w.cell_rot[9 * c] = w.cell_rot[9 * c + 4] = w.cell_rot[9 * c + 8] = 1.0;
     }
     w.f_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
     w.r_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
@@ -471,13 +594,24 @@ void solve_body(const Model& m, const SolidBody& b, SolidWork& w, State& s) {
       const Mat3 F = deformation(b, t, w.q.data());
       rotation_fit(F, &w.quat[4 * t], &w.rot[9 * t], kRotationIterations);
       const Eigen::Map<const Mat3> R(&w.rot[9 * t]);
-      const double tv = volume_shift(R.transpose() * F);
       const double wd = b.w_strain[t] * b.beta_s / h;
-      const Mat3 Y = b.w_strain[t] * R + b.w_volume[t] * (F + tv * R) +
+      const Mat3 Y = b.w_strain[t] * R +
                      wd * (Eigen::Map<const Mat3>(&w.f_prev[9 * t]) + R - Eigen::Map<const Mat3>(&w.r_prev[9 * t]));
       const int32_t* n = &b.tets[4 * t];
       const double* g = &b.grad[12 * t];
       for (int i = 0; i < 4; ++i) {
+        const Eigen::Vector3d y = Y * Eigen::Vector3d(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
+        for (int c = 0; c < 3; ++c) w.sol[c * b.nnode + n[i]] += y[c];
+      }
+    }
+    for (int32_t cl = 0; cl < b.ncell; ++cl) {  // the cells' volume projections
+      const Mat3 F = cell_deformation(b, cl, w.q.data());
+      rotation_fit(F, &w.cell_quat[4 * cl], &w.cell_rot[9 * cl], kRotationIterations);
+      const Eigen::Map<const Mat3> R(&w.cell_rot[9 * cl]);
+      const Mat3 Y = b.w_volume[cl] * (F + volume_shift(R.transpose() * F) * R);
+      const int32_t* n = &b.cell_nodes[8 * cl];
+      const double* g = &b.cell_grad[24 * cl];
+      for (int i = 0; i < 8; ++i) {
         const Eigen::Vector3d y = Y * Eigen::Vector3d(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
         for (int c = 0; c < 3; ++c) w.sol[c * b.nnode + n[i]] += y[c];
       }
@@ -517,6 +651,10 @@ void solve_body(const Model& m, const SolidBody& b, SolidWork& w, State& s) {
     for (int32_t t = 0; t < b.ntet; ++t) {
       w.quat[4 * t] = 1, w.quat[4 * t + 1] = w.quat[4 * t + 2] = w.quat[4 * t + 3] = 0;
       Eigen::Map<Mat3>(&w.rot[9 * t]).setIdentity();
+    }
+    for (int32_t c = 0; c < b.ncell; ++c) {
+      w.cell_quat[4 * c] = 1, w.cell_quat[4 * c + 1] = w.cell_quat[4 * c + 2] = w.cell_quat[4 * c + 3] = 0;
+      Eigen::Map<Mat3>(&w.cell_rot[9 * c]).setIdentity();
     }
     w.grasp_verts.clear();
   }
@@ -591,7 +729,7 @@ SolidStats solid_step(const Model& m, State& s, Work& work) {
         const double sc = l > 0 ? m.conn_rest[q] / l : 0.0;
         const double kd = m.conn_d[q] / m.dt_s;
         double f[3];
-        for (int k = 0; k < 3; ++k) f[k] = m.conn_k[q] * (po[k] + sc * d[k]) + kd * (ps[k] + m.dt_s * uo[k]);
+        for (int k = 0; k < 3; ++k) f[k] = m.conn_k[q] * (po[k] + m.dt_s * uo[k] + sc * d[k]) + kd * (ps[k] + m.dt_s * uo[k]);
         spread(b, self - r.vert_begin, f, w.fext);
       }
     }
@@ -663,14 +801,20 @@ double solid_energy(const Model& m, const State& s) {
     const double* Vn = s.solid_v.data() + 3 * static_cast<size_t>(b.node_begin);
     for (int32_t i = 0; i < b.nnode; ++i)
       e += 0.5 * b.mass[i] * (Vn[3 * i] * Vn[3 * i] + Vn[3 * i + 1] * Vn[3 * i + 1] + Vn[3 * i + 2] * Vn[3 * i + 2]);
-    for (int32_t t = 0; t < b.ntet; ++t) {
-      const Mat3 F = deformation(b, t, X);
+    const auto rotation = [](const Mat3& F) {
       Eigen::JacobiSVD<Mat3> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
       Mat3 U = svd.matrixU(), W = svd.matrixV();
       if ((U * W.transpose()).determinant() < 0) U.col(2) *= -1.0;
-      const Mat3 R = U * W.transpose();
-      const double tv = volume_shift(R.transpose() * F);  // |F - (F + t R)|^2 = 3 t^2
-      e += 0.5 * b.w_strain[t] * (F - R).squaredNorm() + 0.5 * b.w_volume[t] * 3.0 * tv * tv;
+      return Mat3(U * W.transpose());
+    };
+    for (int32_t t = 0; t < b.ntet; ++t) {
+      const Mat3 F = deformation(b, t, X);
+      e += 0.5 * b.w_strain[t] * (F - rotation(F)).squaredNorm();
+    }
+    for (int32_t c = 0; c < b.ncell; ++c) {
+      const Mat3 F = cell_deformation(b, c, X);
+      const double tv = volume_shift(rotation(F).transpose() * F);  // |F - (F + t R)|^2 = 3 t^2
+      e += 0.5 * b.w_volume[c] * 3.0 * tv * tv;
     }
     if (m.gravity)
       for (int32_t i = 0; i < b.nnode; ++i)

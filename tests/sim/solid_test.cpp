@@ -170,6 +170,24 @@ TEST(SolidModel, ReturnsAfterPullAndKeepsVolume) {
   }
 }
 
+// An organ in two pieces (two spheres 60 mm apart) has a zero mode per piece: the Rayleigh
+// damping's lowest shear mode must be the pieces' elastic one, not zero (which left it undamped).
+TEST(SolidModel, OrganInTwoPiecesIsDamped) {
+  test::Mesh a = test::icosphere(3, 0.02), b = a;
+  const int32_t n = static_cast<int32_t>(a.V.size() / 3);
+  for (size_t i = 0; i < b.V.size(); i += 3) b.V[i] += 0.06;
+  a.V.insert(a.V.end(), b.V.begin(), b.V.end());
+  for (int32_t f : b.F) a.F.push_back(f + n);
+  sim::SceneDesc scene;
+  sim::OrganDesc o = test::organ("two", a);
+  o.material.model = sim::ModelKind::solid;
+  scene.organs.push_back(o);
+  const sim::Model m = sim::compile(scene);
+  ASSERT_EQ(m.solids.size(), 1u);
+  EXPECT_GT(m.solids[0].omega1_rad_s, 2 * kPi * 1.0) << sim::solid_plan(m.solids[0]);
+  EXPECT_GT(m.solids[0].beta_s, 0.0);
+}
+
 // The supported paper liver at dt 5 ms, with the region at its top to grasp.
 struct LiverRun {
   sim::SceneDesc scene = liver_scene("meshes/liver_2000.obj", 5e-3);

@@ -6,10 +6,12 @@
 //              cells cut by the surface keep the fraction of their volume that lies inside as a
 //              weight on mass and stiffness (composite elements, Nesme et al. 2009); spacing
 //              from the organ's volume and a node budget (solid_lattice.cpp)
-//   energy     per tetrahedron mu |F - R|^2 + 3 lambda / 2 t^2, R the rotation of F, t the shift
-//              with det(R^T F + t I) = 1: corotational elasticity (Mueller & Gross 2004) with an
-//              exact volume projection, written as the two projective-dynamics constraints of
-//              Bouaziz et al. 2014 (strain and volume)
+//   energy     per tetrahedron mu |F - R|^2, R the rotation of F (corotational elasticity, Mueller &
+//              Gross 2004); per lattice cell 3 lambda / 2 t^2 with F_c the cell's mean deformation
+//              gradient (its 6 tetrahedra) and t the shift with det(R_c^T F_c + t I) = 1: an exact
+//              volume projection on the cell, not on each tetrahedron (mean dilatation, as Q1/P0
+//              hexahedra: 6 volume constraints per node locked the lattice, which then inverted
+//              under a pull); the two projective-dynamics constraints of Bouaziz et al. 2014
 //   damping    Rayleigh stiffness-proportional damping beta K with beta = 2 zeta / omega_1, zeta
 //              the material's damping ratio at the organ's lowest shear mode omega_1, written in the
 //              rotated frame so that rigid motion is not damped
@@ -36,6 +38,7 @@ namespace softatlas::sim {
 struct SolidLattice {
   fem::TetMesh mesh;                // nodes and positive tetrahedra
   std::vector<double> tet_fraction; // #tets: inside fraction of the tetrahedron's cell (0, 1]
+                                    // (tetrahedra 6c .. 6c + 5 are cell c's)
   std::vector<int32_t> embed_tet;   // #V: tetrahedron holding each surface vertex (-1: unused)
   std::vector<double> embed_w;      // #V*4 barycentric weights
   double spacing_m = 0.0;
@@ -67,7 +70,10 @@ struct SolidBody {
   std::vector<int32_t> tets;       // #ntet * 4 local node indices (positive volume)
   std::vector<double> grad;        // #ntet * 12: gradient g_i of each node's shape function
   std::vector<double> w_strain;    // #ntet: 2 mu V f (f = inside fraction of the cell)
-  std::vector<double> w_volume;    // #ntet: 3 lambda V f
+  int32_t ncell = 0;               // lattice cells (ntet / 6)
+  std::vector<double> w_volume;    // #ncell: 3 lambda V_cell f (the cell's volume constraint)
+  std::vector<int32_t> cell_nodes; // #ncell * 8 its nodes
+  std::vector<double> cell_grad;   // #ncell * 24: gradient of F_c = sum_j x_j g_j^T per node
   std::vector<int32_t> embed_tet;  // per organ vertex (v - vert_begin): tetrahedron
   std::vector<double> embed_w;     // per organ vertex * 4: barycentric weights
   int32_t nfixed = 0;              // fixed surface vertices (anchors in the matrix)
@@ -90,6 +96,8 @@ struct SolidWork {
   std::vector<double> rot;         // #ntet * 9 its rotation matrix (column-major)
   std::vector<double> f_prev;      // #ntet * 9 deformation gradient at the start of the step
   std::vector<double> r_prev;      // #ntet * 9 its rotation
+  std::vector<double> cell_quat;   // #ncell * 4, #ncell * 9: the cells' rotation fits, as quat / rot
+  std::vector<double> cell_rot;
   std::vector<double> fext;        // #nnode * 3 external nodal forces of this step
   // the tool's exact constraints: grasped vertices, Z = A^-1 C^T (#nnode x k, column-major),
   // Cholesky factor of S = C Z (k x k), multipliers (k * 3)
