@@ -110,17 +110,40 @@ double volume_shift(const Mat3& S) {
   return std::fabs(t) < 0.5 ? t : t0;
 }
 
-// F = sum_i x_i g_i^T of tetrahedron t at positions x (#nnode*3 row-major).
-Mat3 deformation(const SolidBody& b, int32_t t, const double* x) {
+// An element (a tetrahedron: 4 nodes, a lattice cell: 8) is its nodes n and the gradients g
+// (3 per node) of F = sum_i x_i g_i^T; the helpers below serve both.
+
+// F of an element at positions x (#nnode*3 row-major).
+Mat3 element_deformation(const int32_t* n, const double* g, int k, const double* x) {
   Mat3 F = Mat3::Zero();
-  const int32_t* n = &b.tets[4 * t];
-  const double* g = &b.grad[12 * t];
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < k; ++i) {
     const double* p = x + 3 * n[i];
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) F(r, c) += p[r] * g[3 * i + c];
   }
   return F;
+}
+Mat3 deformation(const SolidBody& b, int32_t t, const double* x) {
+  return element_deformation(&b.tets[4 * t], &b.grad[12 * t], 4, x);
+}
+Mat3 cell_deformation(const SolidBody& b, int32_t c, const double* x) {
+  return element_deformation(&b.cell_nodes[8 * c], &b.cell_grad[24 * c], 8, x);
+}
+
+// The projection's pull Y g_i on each node of an element, into the column-major right-hand side.
+void add_element_rhs(const int32_t* n, const double* g, int k, const Mat3& Y, int32_t nnode, double* sol) {
+  for (int i = 0; i < k; ++i) {
+    const Eigen::Vector3d y = Y * Eigen::Vector3d(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
+    for (int c = 0; c < 3; ++c) sol[c * nnode + n[i]] += y[c];
+  }
+}
+
+// Unit quaternions and identity matrices: the rotation fits' warm start, n of them.
+void reset_rotations(double* quat, double* rot, int32_t n) {
+  for (int32_t e = 0; e < n; ++e) {
+    quat[4 * e] = 1, quat[4 * e + 1] = quat[4 * e + 2] = quat[4 * e + 3] = 0;
+    Eigen::Map<Mat3>(rot + 9 * e).setIdentity();
+  }
 }
 
 double enclosed_volume_local(const std::vector<double>& V, const std::vector<int32_t>& F) {
@@ -137,39 +160,21 @@ double enclosed_volume_local(const std::vector<double>& V, const std::vector<int
 
 using Triplets = std::vector<Eigen::Triplet<double>>;
 
-// sum_e w_e G_e^T G_e as triplets (scalar n x n: the same matrix acts on x, y and z).
+// w G^T G of an element as triplets (scalar: the same matrix acts on x, y and z).
+void add_element_gram(const int32_t* n, const double* g, int k, double w, Triplets& T) {
+  for (int i = 0; i < k; ++i)
+    for (int j = 0; j < k; ++j)
+      T.emplace_back(n[i], n[j], w * (g[3 * i] * g[3 * j] + g[3 * i + 1] * g[3 * j + 1] + g[3 * i + 2] * g[3 * j + 2]));
+}
+
+// sum_t w_t G_t^T G_t over the tetrahedra.
 void add_laplacian(const SolidBody& b, const std::vector<double>& w, Triplets& T) {
-  for (int32_t t = 0; t < b.ntet; ++t) {
-    const int32_t* n = &b.tets[4 * t];
-    const double* g = &b.grad[12 * t];
-    for (int i = 0; i < 4; ++i)
-      for (int j = 0; j < 4; ++j)
-        T.emplace_back(n[i], n[j], w[t] * (g[3 * i] * g[3 * j] + g[3 * i + 1] * g[3 * j + 1] + g[3 * i + 2] * g[3 * j + 2]));
-  }
+  for (int32_t t = 0; t < b.ntet; ++t) add_element_gram(&b.tets[4 * t], &b.grad[12 * t], 4, w[t], T);
 }
 
-// sum_c w_c G_c^T G_c of the cells' volume constraints (scalar, 8 x 8 per cell).
+// sum_c w_c G_c^T G_c of the cells' volume constraints.
 void add_cell_laplacian(const SolidBody& b, Triplets& T) {
-  for (int32_t c = 0; c < b.ncell; ++c) {
-    const int32_t* n = &b.cell_nodes[8 * c];
-    const double* g = &b.cell_grad[24 * c];
-    for (int i = 0; i < 8; ++i)
-      for (int j = 0; j < 8; ++j)
-        T.emplace_back(n[i], n[j], b.w_volume[c] * (g[3 * i] * g[3 * j] + g[3 * i + 1] * g[3 * j + 1] + g[3 * i + 2] * g[3 * j + 2]));
-  }
-}
-
-// F_c = sum_j x_j g_j^T of cell c at positions x.
-Mat3 cell_deformation(const SolidBody& b, int32_t c, const double* x) {
-  Mat3 F = Mat3::Zero();
-  const int32_t* n = &b.cell_nodes[8 * c];
-  const double* g = &b.cell_grad[24 * c];
-  for (int i = 0; i < 8; ++i) {
-    const double* p = x + 3 * n[i];
-    for (int r = 0; r < 3; ++r)
-      for (int k = 0; k < 3; ++k) F(r, k) += p[r] * g[3 * i + k];
-  }
-  return F;
+  for (int32_t c = 0; c < b.ncell; ++c) add_element_gram(&b.cell_nodes[8 * c], &b.cell_grad[24 * c], 8, b.w_volume[c], T);
 }
 
 // Lowest nonzero shear frequency of the free lattice: L_mu u = omega^2 M u with the scalar
@@ -256,15 +261,21 @@ void compile_solids(const SceneDesc& scene, Model& m) {
     return mat.solid_nodes > 0 ? mat.solid_nodes
                                : std::clamp(static_cast<int>(std::lround(kSceneNodes * share)), kMinNodes, kDefaultNodes);
   };
-  const auto surface_of = [&](const OrganRange& r, std::vector<double>& V, std::vector<int32_t>& F) {
+  // each solid organ's rest surface with organ-local vertex indices
+  std::vector<std::vector<double>> surf_v(norg);
+  std::vector<std::vector<int32_t>> surf_f(norg);
+  for (int32_t o = 0; o < norg; ++o) {
+    const OrganRange& r = m.organs[o];
+    if (r.model != ModelKind::solid) continue;
     const int32_t nv = r.vert_end - r.vert_begin;
+    std::vector<double>& V = surf_v[o];
     V.resize(3 * static_cast<size_t>(nv));
     for (int32_t v = 0; v < nv; ++v)
       V[3 * v] = m.vert_rest_x[r.vert_begin + v], V[3 * v + 1] = m.vert_rest_y[r.vert_begin + v],
              V[3 * v + 2] = m.vert_rest_z[r.vert_begin + v];
-    F.assign(m.face_vert.begin() + 3 * r.face_begin, m.face_vert.begin() + 3 * r.face_end);
-    for (int32_t& f : F) f -= r.vert_begin;
-  };
+    surf_f[o].assign(m.face_vert.begin() + 3 * r.face_begin, m.face_vert.begin() + 3 * r.face_end);
+    for (int32_t& f : surf_f[o]) f -= r.vert_begin;
+  }
   // Lattices: the share's, refined for thin organs; when the refinements together pass
   // kSceneThinNodes, each refined organ gets the same fraction of what it asked for.
   std::vector<SolidLattice> lattice(norg);
@@ -274,9 +285,8 @@ void compile_solids(const SceneDesc& scene, Model& m) {
     const OrganRange& r = m.organs[o];
     if (r.model != ModelKind::solid) continue;
     const Material& mat = scene.organs[r.source_index].material;
-    std::vector<double> V;
-    std::vector<int32_t> F;
-    surface_of(r, V, F);
+    const std::vector<double>& V = surf_v[o];
+    const std::vector<int32_t>& F = surf_f[o];
     const int budget = budget_of(r, mat);
     lattice[o] = mat.solid_nodes != 0 ? solid_lattice_budget(V, F, budget)
                                       : organ_lattice(V, F, std::fabs(r.rest_volume_m3), budget, kMaxThinNodes);
@@ -288,12 +298,9 @@ void compile_solids(const SceneDesc& scene, Model& m) {
     for (int32_t o = 0; o < norg; ++o) {
       if (!refined[o]) continue;
       const OrganRange& r = m.organs[o];
-      std::vector<double> V;
-      std::vector<int32_t> F;
-      surface_of(r, V, F);
       const int budget = budget_of(r, scene.organs[r.source_index].material);
       const int nodes = std::max(budget, static_cast<int>(scale * lattice[o].mesh.nnode()));
-      lattice[o] = organ_lattice(V, F, std::fabs(r.rest_volume_m3), budget, nodes);
+      lattice[o] = organ_lattice(surf_v[o], surf_f[o], std::fabs(r.rest_volume_m3), budget, nodes);
     }
   }
   for (int32_t o = 0; o < norg; ++o) {
@@ -314,9 +321,8 @@ void compile_solids(const SceneDesc& scene, Model& m) {
       throw InputError(where, "solid_nodes and solid_iterations must be >= 0");
 
     const int32_t nv = r.vert_end - r.vert_begin;
-    std::vector<double> V;
-    std::vector<int32_t> F;
-    surface_of(r, V, F);
+    const std::vector<double>& V = surf_v[o];
+    const std::vector<int32_t>& F = surf_f[o];
     const SolidLattice& L = lattice[o];
 
     SolidBody b;
@@ -465,18 +471,10 @@ std::vector<SolidWork> make_solid_work(const Model& m) {
     SolidWork& w = out[i];
     const size_t n3 = 3 * static_cast<size_t>(b.nnode);
     w.q.assign(n3, 0.0), w.s.assign(n3, 0.0), w.rhs.assign(n3, 0.0), w.sol.assign(n3, 0.0), w.fext.assign(n3, 0.0);
-    w.quat.assign(4 * static_cast<size_t>(b.ntet), 0.0);
-    w.rot.assign(9 * static_cast<size_t>(b.ntet), 0.0);
-    for (int32_t t = 0; t < b.ntet; ++t) {
-      w.quat[4 * t] = 1.0;
-      w.rot[9 * t] = w.rot[9 * t + 4] = w.rot[9 * t + 8] = 1.0;
-    }
-    w.cell_quat.assign(4 * static_cast<size_t>(b.ncell), 0.0);
-    w.cell_rot.assign(9 * static_cast<size_t>(b.ncell), 0.0);
-    for (int32_t c = 0; c < b.ncell; ++c) {
-      w.cell_quat[4 * c] = 1.0;
-      w.cell_rot[9 * c] = w.cell_rot[9 * c + 4] = w.cell_rot[9 * c + 8] = 1.0;
-    }
+    w.quat.resize(4 * static_cast<size_t>(b.ntet)), w.rot.resize(9 * static_cast<size_t>(b.ntet));
+    w.cell_quat.resize(4 * static_cast<size_t>(b.ncell)), w.cell_rot.resize(9 * static_cast<size_t>(b.ncell));
+    reset_rotations(w.quat.data(), w.rot.data(), b.ntet);
+    reset_rotations(w.cell_quat.data(), w.cell_rot.data(), b.ncell);
     w.f_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
     w.r_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
   }
@@ -597,24 +595,14 @@ void solve_body(const Model& m, const SolidBody& b, SolidWork& w, State& s) {
       const double wd = b.w_strain[t] * b.beta_s / h;
       const Mat3 Y = b.w_strain[t] * R +
                      wd * (Eigen::Map<const Mat3>(&w.f_prev[9 * t]) + R - Eigen::Map<const Mat3>(&w.r_prev[9 * t]));
-      const int32_t* n = &b.tets[4 * t];
-      const double* g = &b.grad[12 * t];
-      for (int i = 0; i < 4; ++i) {
-        const Eigen::Vector3d y = Y * Eigen::Vector3d(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
-        for (int c = 0; c < 3; ++c) w.sol[c * b.nnode + n[i]] += y[c];
-      }
+      add_element_rhs(&b.tets[4 * t], &b.grad[12 * t], 4, Y, b.nnode, w.sol.data());
     }
     for (int32_t cl = 0; cl < b.ncell; ++cl) {  // the cells' volume projections
       const Mat3 F = cell_deformation(b, cl, w.q.data());
       rotation_fit(F, &w.cell_quat[4 * cl], &w.cell_rot[9 * cl], kRotationIterations);
       const Eigen::Map<const Mat3> R(&w.cell_rot[9 * cl]);
       const Mat3 Y = b.w_volume[cl] * (F + volume_shift(R.transpose() * F) * R);
-      const int32_t* n = &b.cell_nodes[8 * cl];
-      const double* g = &b.cell_grad[24 * cl];
-      for (int i = 0; i < 8; ++i) {
-        const Eigen::Vector3d y = Y * Eigen::Vector3d(g[3 * i], g[3 * i + 1], g[3 * i + 2]);
-        for (int c = 0; c < 3; ++c) w.sol[c * b.nnode + n[i]] += y[c];
-      }
+      add_element_rhs(&b.cell_nodes[8 * cl], &b.cell_grad[24 * cl], 8, Y, b.nnode, w.sol.data());
     }
     // global step: one prefactored solve, then the held vertices' exact constraints
     sol = b.factor->ldlt.solve(sol);
@@ -648,14 +636,8 @@ void solve_body(const Model& m, const SolidBody& b, SolidWork& w, State& s) {
   if (!std::isfinite(checksum)) {  // cannot happen with finite input; keep the state usable
     std::copy(b.rest.begin(), b.rest.end(), X);
     std::fill(Vn, Vn + n3, 0.0);
-    for (int32_t t = 0; t < b.ntet; ++t) {
-      w.quat[4 * t] = 1, w.quat[4 * t + 1] = w.quat[4 * t + 2] = w.quat[4 * t + 3] = 0;
-      Eigen::Map<Mat3>(&w.rot[9 * t]).setIdentity();
-    }
-    for (int32_t c = 0; c < b.ncell; ++c) {
-      w.cell_quat[4 * c] = 1, w.cell_quat[4 * c + 1] = w.cell_quat[4 * c + 2] = w.cell_quat[4 * c + 3] = 0;
-      Eigen::Map<Mat3>(&w.cell_rot[9 * c]).setIdentity();
-    }
+    reset_rotations(w.quat.data(), w.rot.data(), b.ntet);
+    reset_rotations(w.cell_quat.data(), w.cell_rot.data(), b.ncell);
     w.grasp_verts.clear();
   }
   w.out_checksum = checksum;
