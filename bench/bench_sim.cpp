@@ -251,6 +251,7 @@ void add_commands(CLI::App& root, cli::Status* status) {
   CLI::App* bench = cli::group(root, "bench", "benchmarks (JSON on stdout)");
   add_bench_sim(*bench, status);
   add_bench_restore(*bench, status);
+  add_bench_contact(*bench, status);
 }
 
 int cli_main(const std::vector<std::string>& args) {

@@ -626,6 +626,7 @@ Model compile(const SceneDesc& scene) {
   }
 
   compile_solids(scene, m);  // lattices of the solid organs (solid_step.cpp)
+  compile_contact(scene.contact, m);  // contact between organs (contact.cpp)
 
   // ---- the plan, in words ----
   std::ostringstream os;
@@ -636,6 +637,16 @@ Model compile(const SceneDesc& scene) {
      << m.nface << " faces, " << m.nspring << " springs, " << m.nconn << " connection springs, "
      << m.nflex << " flexion springs";
   line(os.str());
+  if (m.contact.on) {
+    int64_t inside = 0;
+    for (uint8_t f : m.contact.rest_inside) inside += f;
+    line("contact between organs: vertices closer than their partners' boxes + " +
+         std::to_string(static_cast<int>(std::lround(m.contact.depth_m * 1e3))) +
+         " mm projected out of their nearest face (hash grid, " + std::to_string(m.contact.table_size) +
+         " buckets); " + std::to_string(inside) + " vertices inside another organ at rest are exempt");
+  } else {
+    m.dropped.push_back(scene.contact ? "contact: fewer than two organs" : "contact: off (SceneDesc::contact)");
+  }
   for (const OrganRange& r : m.organs) {
     std::string s = "organ '" + r.name + "' [" + to_string(r.model) + "]: " +
                     std::to_string(r.spring_end - r.spring_begin) + " springs";

@@ -509,6 +509,26 @@ bool grasp_schur(const SolidBody& b, const std::vector<int32_t>& local, Eigen::M
   return llt.info() == Eigen::Success;
 }
 
+double solid_surface_update(const Model& m, const SolidBody& b, State& s) {
+  const OrganRange& r = m.organs[b.organ];
+  const double* X = s.solid_x.data() + 3 * static_cast<size_t>(b.node_begin);
+  const double* Vn = s.solid_v.data() + 3 * static_cast<size_t>(b.node_begin);
+  double max_speed2 = 0.0;
+  for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
+    const int32_t t = b.embed_tet[v - r.vert_begin];
+    if (t < 0) continue;
+    const int32_t* n = &b.tets[4 * t];
+    const double* bw = &b.embed_w[4 * (v - r.vert_begin)];
+    double p[3] = {0, 0, 0}, u[3] = {0, 0, 0};
+    for (int i = 0; i < 4; ++i)
+      for (int c = 0; c < 3; ++c) p[c] += bw[i] * X[3 * n[i] + c], u[c] += bw[i] * Vn[3 * n[i] + c];
+    s.x[v] = p[0], s.y[v] = p[1], s.z[v] = p[2];
+    s.vx[v] = u[0], s.vy[v] = u[1], s.vz[v] = u[2];
+    max_speed2 = std::max(max_speed2, u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+  }
+  return max_speed2;
+}
+
 namespace {
 
 // Position and velocity of global vertex v: solid organs' from their lattice, others' from the state.
@@ -562,7 +582,6 @@ void prepare_grasp(const SolidBody& b, SolidWork& w, const std::vector<int32_t>&
 // scratch, so organs run in parallel.
 void solve_body(const Model& m, const SolidBody& b, SolidWork& w, State& s) {
   const double h = m.dt_s;
-  const OrganRange& r = m.organs[b.organ];
   double* X = s.solid_x.data() + 3 * static_cast<size_t>(b.node_begin);
   double* Vn = s.solid_v.data() + 3 * static_cast<size_t>(b.node_begin);
   const size_t n3 = 3 * static_cast<size_t>(b.nnode);
@@ -641,19 +660,7 @@ void solve_body(const Model& m, const SolidBody& b, SolidWork& w, State& s) {
     w.grasp_verts.clear();
   }
   w.out_checksum = checksum;
-  // Surface vertices follow the lattice.
-  for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
-    const int32_t t = b.embed_tet[v - r.vert_begin];
-    if (t < 0) continue;
-    const int32_t* n = &b.tets[4 * t];
-    const double* bw = &b.embed_w[4 * (v - r.vert_begin)];
-    double p[3] = {0, 0, 0}, u[3] = {0, 0, 0};
-    for (int i = 0; i < 4; ++i)
-      for (int c = 0; c < 3; ++c) p[c] += bw[i] * X[3 * n[i] + c], u[c] += bw[i] * Vn[3 * n[i] + c];
-    s.x[v] = p[0], s.y[v] = p[1], s.z[v] = p[2];
-    s.vx[v] = u[0], s.vy[v] = u[1], s.vz[v] = u[2];
-    w.out_max_speed2 = std::max(w.out_max_speed2, u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-  }
+  w.out_max_speed2 = solid_surface_update(m, b, s);  // surface vertices follow the lattice
 }
 
 struct SolveJob {

@@ -20,6 +20,7 @@ State make_state(const Model& m) {
     if (m.organs[o].model == ModelKind::rigid) s.organ_awake[o] = 0;
   s.organ_still_steps.assign(m.organs.size(), 0);
   init_solid_state(m, s);                              // solid_step.cpp: lattice nodes at rest
+  s.contact_let_go.assign(m.contact.on ? m.nvert : 0, 0);
   return s;
 }
 
@@ -95,6 +96,7 @@ Work make_work(const Model& m) {
   w.tool_target.reserve(3 * n);  // attach() may hold any number of vertices up to all
   for (int32_t v = 0; v < m.nvert; ++v) w.free_mask[v] = m.vert_inv_mass[v] > 0 && !solid_vertex(m, v) ? 1.0 : 0.0;
   w.solid = make_solid_work(m);
+  w.contact = make_contact_work(m);
   return w;
 }
 
@@ -124,6 +126,7 @@ StepReport step(const Model& m, State& s, Work& w) {
     st.max_speed2 = std::max(st.max_speed2, ss.max_speed2);
     st.checksum += ss.checksum;
   }
+  rep.contacts = contact_pass(m, s, w);               // contact.cpp: organs do not pass through
   // Inside each integrator: forces.cpp (springs.cpp 000 eq 6, 000 eq 7; curvature.cpp 000 eq 2
   // for 000 eq 5; flexion.cpp), tool.cpp (force or hold), then constraints.cpp
   // (compensation.cpp; volume.cpp 003 eq 25 to 003 eq 30).

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "softatlas/sim/contact.hpp"
 #include "softatlas/sim/solid.hpp"
 
 namespace softatlas::sim {
@@ -120,6 +121,7 @@ struct SceneDesc {
   double sleep_speed_m_s = 1e-6;    // below this speed for sleep_steps steps, an organ sleeps
   int sleep_steps = 200;
   int threads = 1;                  // worker threads; organs are stepped in parallel
+  bool contact = true;              // organs do not pass through each other (sim/contact.hpp)
 };
 
 // One compiled organ: contiguous ranges in the global arrays.
@@ -207,6 +209,7 @@ struct Model {
   // vertices that end a connection spring get forces they never consume; the explicit step
   // clears just these after integrating (so a rigid organ costs no per-vertex work).
   std::vector<int32_t> rigid_conn_verts;
+  ContactModel contact;                // contact between organs (sim/contact.hpp)
 };
 
 // The tool: one interaction at a time (force pulling or position attachment).
@@ -237,6 +240,7 @@ struct State {
   int64_t guard_actions = 0;             // sub-stepped, implicit, clamped or restored steps
   int64_t guard_restores = 0;
   std::vector<double> solid_x, solid_v;  // solid organs' lattice nodes (#nodes*3), sim/solid.hpp
+  std::vector<uint8_t> contact_let_go;   // per vertex: pushed through another organ, not projected
 };
 
 class WorkerPool;  // sim/src/workers.hpp
@@ -275,6 +279,7 @@ struct Work {
   double good_time_s = 0.0;
   int64_t good_step = -1;
   std::vector<SolidWork> solid;              // per solid organ (sim/solid.hpp)
+  ContactWork contact;                       // contact detection and projection (sim/contact.hpp)
 };
 
 }  // namespace softatlas::sim

@@ -51,6 +51,7 @@ struct StepReport {
   double max_speed_m_s = 0.0;
   bool tool_clamped = false;
   int cg_iterations = 0;         // implicit steps: CG iterations done (most over the components)
+  int contacts = 0;              // vertices projected out of another organ (contact.cpp)
   const char* message = "";      // static text, set when status != ok
 };
 

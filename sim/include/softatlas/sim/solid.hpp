@@ -131,6 +131,10 @@ struct SolidStats {
 // 1^T S^-1 1 is the grasp's one-step stiffness; grasp_lambda holds the last iteration's multipliers.
 SolidStats solid_step(const Model& model, State& state, Work& work);
 
+// The organ's surface vertices (positions and velocities in the state) from its lattice nodes;
+// returns their largest squared speed. After the solve, and after contact moved the nodes.
+double solid_surface_update(const Model& model, const SolidBody& body, State& state);
+
 // One line for the compiled plan (explain): lattice size, material, damping, iterations.
 std::string solid_plan(const SolidBody& body);
 
