@@ -912,7 +912,8 @@ void check_dicom_lengths(const fs::path& f) {
                                    {0x0028, 0x0100, "US", 1}, {0x0028, 0x0101, "US", 1}, {0x0028, 0x0102, "US", 1},
                                    {0x0028, 0x0103, "US", 1}, {0x0028, 0x0030, "DS", 2}, {0x0028, 0x1052, "DS", 1},
                                    {0x0028, 0x1053, "DS", 1}, {0x0020, 0x0032, "DS", 3}, {0x0020, 0x0037, "DS", 6},
-                                   {0x0018, 0x0050, "DS", 1}, {0x0018, 0x0088, "DS", 1}, {0x0028, 0x0008, "IS", 1}};
+                                   {0x0018, 0x0050, "DS", 1}, {0x0018, 0x0088, "DS", 1}, {0x0028, 0x0008, "IS", 1},
+                                   {0x0028, 0x0009, "AT", 0}};  // FrameIncrementPointer: tags, any count
     if (depth == 0)
       for (const Known& k : kKnown) {
         if (k.group != group || k.elem != elem || len == 0) continue;  // empty: absent
@@ -920,6 +921,10 @@ void check_dicom_lengths(const fs::path& f) {
         const std::string name = "DICOM (" + std::to_string(group) + "," + std::to_string(elem) + ")";
         if (ev && d.compare(pos - 4, 2, k.vr) != 0)  // US, DS, IS: the 8-byte header, VR at byte 4
           throw InputError(where, name + ": expected VR " + k.vr);
+        if (k.vr[0] == 'A') {  // AT: 4 bytes per value
+          if (len % 4 != 0) throw InputError(where, name + ": expected tags of 4 bytes each");
+          continue;
+        }
         if (k.vr[0] == 'U' ? len != 2 * static_cast<uint32_t>(k.count)
                            : static_cast<int>(std::count(value.begin(), value.end(), '\\')) + 1 != k.count)
           throw InputError(where, name + ": expected " + std::to_string(k.count) + " value(s)");
