@@ -5,7 +5,6 @@
 
 #include "softatlas/app/lesson.hpp"
 #include "softatlas/pipeline/build.hpp"
-#include "softatlas/pipeline/segment.hpp"
 #include "softatlas/sim/error.hpp"
 
 namespace fs = std::filesystem;
@@ -20,13 +19,9 @@ const std::vector<std::string>& targets() {
 }
 
 void feed(const std::string& target, const std::string& bytes) {
-  if (feed_reader(target, bytes) || feed_lesson(target, bytes)) return;
+  if (feed_reader(target, bytes) || feed_lesson(target, bytes) || feed_seeds(target, bytes)) return;
   const fs::path dir = scratch();
-  if (target == "seeds") {
-    const fs::path f = dir / "seeds.yaml";
-    write_input(f.string(), bytes);
-    pipeline::read_seeds(f.string());
-  } else if (target == "build_yaml") {
+  if (target == "build_yaml") {
     const fs::path f = dir / "build.yaml";
     write_input(f.string(), bytes);
     pipeline::BuildOptions options;

@@ -23,6 +23,8 @@ void feed(const std::string& target, const std::string& bytes);
 bool feed_reader(const std::string& target, const std::string& bytes);
 // The same for lessons and device scripts (fuzz/lessons.cpp).
 bool feed_lesson(const std::string& target, const std::string& bytes);
+// The same for seed files (fuzz/seeds.cpp).
+bool feed_seeds(const std::string& target, const std::string& bytes);
 
 // Scratch folder of this process (created on first use, removed at exit), and a file writer.
 const std::string& scratch();

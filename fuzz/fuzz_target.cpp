@@ -23,6 +23,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     softatlas::fuzz::feed_reader(SOFTATLAS_FUZZ_TARGET, bytes);  // links only the reader sources
 #elif defined(SOFTATLAS_FUZZ_LESSON)
     softatlas::fuzz::feed_lesson(SOFTATLAS_FUZZ_TARGET, bytes);  // the lesson sources and the readers
+#elif defined(SOFTATLAS_FUZZ_SEEDS)
+    softatlas::fuzz::feed_seeds(SOFTATLAS_FUZZ_TARGET, bytes);  // the segmentation sources and the readers
 #else
     softatlas::fuzz::feed(SOFTATLAS_FUZZ_TARGET, bytes);
 #endif

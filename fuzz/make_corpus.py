@@ -101,8 +101,8 @@ def main():
     import zlib
     packed = zlib.compress(body, 6)
     put("metaimage", "zlib.mha", (mha % ("True", nx, ny, nz)).replace("ElementType", "CompressedDataSize = %d\nElementType" % len(packed)).encode() + packed)
-    # DICOM: scripts/fuzz adds two real slices of ../shared/data's abdomen slab at run time (150 KB
-    # each, not committed); here only a minimal explicit-little-endian file made by hand.
+    # DICOM: only a minimal explicit-little-endian file made by hand (the real slices of
+    # ../shared/data's abdomen slab are 150 KB each and not used: nothing adds them at run time).
     put("dicom", "minimal.dcm", minimal_dicom())
     # Meshes: the 1000-face liver as OBJ, and the same surface as ASCII/binary STL and OFF; PLY of the demo set.
     obj = read(os.path.join(ROOT, "data", "meshes", "liver_1000.obj")).decode()
@@ -150,6 +150,27 @@ def main():
     put("build_yaml", "build.yaml", "organs: [pulmonary_artery, heart]\nbudget: {pulmonary_artery: 700}\n"
         "smoothing_iterations: 20\nsmoothing_passband: 0.1\nspeck_share: 0.01\nremesh_iterations: 3\n"
         "connect_distance_mm: 3\nconnect_spacing_mm: 6\nconnect_stiffness: 5\nanchor_count: 12\n")
+    # More seeds and build.yaml files: the docs' example, the demo set's organs (data/atlas/atlas.yaml)
+    # and the first names of the TotalSegmentator table (../shared/data/ct, when present), every
+    # build.yaml key (docs/pipeline.md), block and flow style, comments, CRLF.
+    atlas_names = [l.split("name:")[1].strip() for l in atlas.splitlines() if l.strip().startswith("- name:")]
+    tsv = os.path.join(SHARED, "ct", "totalsegmentator_label_table.tsv")
+    table = [l.split("\t")[1] for l in read(tsv).decode().splitlines()[1:9]] if os.path.exists(tsv) else ["spleen", "liver"]
+    put("seeds", "docs_liver_spleen.yaml", "organs:\n  liver: [[-80.5, 12.0, -790.0], [-60.0, 30.5, -785.0]]\n"
+        "  spleen: [[95.0, 40.0, -780.0]]\nbackground: [[0.0, 80.0, -790.0]]\n")
+    put("seeds", "atlas_organs_block.yaml", "# one seed per organ of the demo set\norgans:\n" + "".join(
+        "  %s:\n    - [%g, %g, %g]\n    - [%g, %g, %g]\n" % (n, -60 + 12 * i, 10.5 - i, -790 + 3 * i, -58 + 12 * i, 12, -788 + 3 * i)
+        for i, n in enumerate(atlas_names)) + "background:\n  - [0, 80, -790]\n")
+    put("seeds", "table_organs_crlf.yaml", ("organs:\r\n" + "".join("  %s: [[%d, %d.25, -7%02d.5]]\r\n" % (n, 10 * i, -i, i)
+        for i, n in enumerate(table)) + "background: [[-1e2, 0, 0]]\r\n"))
+    put("build_yaml", "all_keys.yaml", "# every key of docs/pipeline.md\norgans: [%s]\nbudget:\n  %s: 5000\n  %s: 800\n"
+        "smoothing_iterations: 15\nsmoothing_passband: 0.05\nspeck_share: 0.02\nremesh_iterations: 5\n"
+        "wrap_alpha_mm: 0\nconnect_distance_mm: 4\nconnect_spacing_mm: 6\nconnect_stiffness: 50\n"
+        "connect_pairs:\n  - [%s, %s]\n  - [%s, %s]\nanchor_count: 6\nanchor_spacing_mm: 15\n"
+        % (", ".join(atlas_names[:6]), atlas_names[1], atlas_names[4], atlas_names[1], atlas_names[2],
+           atlas_names[4], atlas_names[5]))
+    put("build_yaml", "groups_flow.yaml", "{organs: [organs, bones, %s], budget: {%s: 1000}, anchor_count: 0, "
+        "wrap_alpha_mm: 1.5}\n" % (table[0], table[1]))
 
 
 if __name__ == "__main__":

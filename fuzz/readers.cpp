@@ -23,6 +23,8 @@ void write(const fs::path& path, const std::string& bytes) {
   if (!out) throw std::runtime_error("fuzz harness: cannot write " + path.string());
 }
 
+// The scratch folder is under TMPDIR (scripts/fuzz sets /dev/shm: every input is written to a
+// file, since the readers take paths, and tmpfs makes that write cheap).
 struct Scratch {
   fs::path dir;
   Scratch() {
@@ -46,15 +48,25 @@ Scratch& the_scratch() {
 
 // An organ set folder: atlas.yaml is the input up to a line "--- connections.csv", the rest is
 // connections.csv; the meshes are the demo set's.
+// The folder and its link are made once; each input rewrites atlas.yaml and writes or removes
+// connections.csv (a remove_all + mkdir + symlink per input cost more than the reader).
 void feed_organ_set(const std::string& bytes) {
   const fs::path set = the_scratch().dir / "set";
-  fs::remove_all(set);
-  fs::create_directories(set);
-  fs::create_directory_symlink(fs::path(SOFTATLAS_SOURCE_DIR) / "data" / "atlas" / "organs", set / "organs");
+  static const bool made = [&] {
+    fs::create_directories(set);
+    fs::create_directory_symlink(fs::path(SOFTATLAS_SOURCE_DIR) / "data" / "atlas" / "organs", set / "organs");
+    return true;
+  }();
+  (void)made;
   const std::string sep = "\n--- connections.csv\n";
   const size_t p = bytes.find(sep);
   write(set / "atlas.yaml", bytes.substr(0, p));
-  if (p != std::string::npos) write(set / "connections.csv", bytes.substr(p + sep.size()));
+  if (p != std::string::npos) {
+    write(set / "connections.csv", bytes.substr(p + sep.size()));
+  } else {
+    std::error_code ec;
+    fs::remove(set / "connections.csv", ec);
+  }
   io::read_organ_set(set.string());
 }
 
@@ -80,9 +92,9 @@ bool feed_reader(const std::string& target, const std::string& bytes) {
     write(f, bytes);
     pipeline::read_volume(f.string());
   } else if (target == "dicom") {
-    const fs::path folder = dir / "dicom";
-    fs::remove_all(folder);
-    fs::create_directories(folder);
+    const fs::path folder = dir / "dicom";  // made once; its one file is rewritten per input
+    static const bool made = fs::create_directories(folder);
+    (void)made;
     write(folder / "slice.dcm", bytes);
     pipeline::read_volume(folder.string());
   } else if (target.rfind("mesh_", 0) == 0) {

@@ -134,22 +134,30 @@ Seeds read_seeds(const std::string& path) {
   }
   if (!root.IsMap()) throw InputError(path, "expected a map with 'organs' (and optional 'background')");
   Seeds s;
-  for (const auto& kv : root) {
-    const std::string key = kv.first.as<std::string>();
-    if (key == "organs") {
-      if (!kv.second.IsMap()) throw InputError(mark(path, kv.second), "organs: expected a map organ: [[x, y, z], ...]");
-      for (const auto& o : kv.second) {
-        const std::string name = o.first.as<std::string>();
-        if (label_id(name) == 0)
-          throw InputError(mark(path, o.first), "unknown organ '" + name + "' (expected a TotalSegmentator name)");
-        s.organs[name] = read_points(path, o.second, name);
-        if (s.organs[name].empty()) throw InputError(mark(path, o.second), name + ": expected at least one seed");
+  // Any yaml-cpp conversion left unchecked (a key that is a map or a sequence, `? [a]: x`, threw
+  // TypedBadConversion out of the reader: libFuzzer find) becomes an error at its mark.
+  try {
+    for (const auto& kv : root) {
+      if (!kv.first.IsScalar()) throw InputError(mark(path, kv.first), "expected a name as the key");
+      const std::string key = kv.first.as<std::string>();
+      if (key == "organs") {
+        if (!kv.second.IsMap()) throw InputError(mark(path, kv.second), "organs: expected a map organ: [[x, y, z], ...]");
+        for (const auto& o : kv.second) {
+          if (!o.first.IsScalar()) throw InputError(mark(path, o.first), "organs: expected an organ name as the key");
+          const std::string name = o.first.as<std::string>();
+          if (label_id(name) == 0)
+            throw InputError(mark(path, o.first), "unknown organ '" + name + "' (expected a TotalSegmentator name)");
+          s.organs[name] = read_points(path, o.second, name);
+          if (s.organs[name].empty()) throw InputError(mark(path, o.second), name + ": expected at least one seed");
+        }
+      } else if (key == "background") {
+        s.background = read_points(path, kv.second, "background");
+      } else {
+        throw InputError(mark(path, kv.first), "unknown key '" + key + "' (expected organs, background)");
       }
-    } else if (key == "background") {
-      s.background = read_points(path, kv.second, "background");
-    } else {
-      throw InputError(mark(path, kv.first), "unknown key '" + key + "' (expected organs, background)");
     }
+  } catch (const YAML::Exception& e) {
+    throw InputError(path + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1), e.msg);
   }
   if (s.organs.empty()) throw InputError(path, "no organ seeds (expected organs: {liver: [[x, y, z]], ...})");
   return s;

@@ -842,9 +842,12 @@ void check_dicom_lengths(const fs::path& f) {
   std::string syntax;
   // Each open undefined-length sequence or item: its end is found by a delimiter.
   int depth = 0;
+  // GDCM asserts (ReadExplicitDataElement) when the file ends inside the file meta group.
+  bool saw_meta = false, saw_data_set = false;
   while (pos < d.size()) {
     if (pos + 8 > d.size()) throw InputError(where, "truncated DICOM data element at byte " + std::to_string(pos));
     const uint32_t group = u16(pos), elem = u16(pos + 2);
+    (group == 0x0002 ? saw_meta : saw_data_set) = true;
     if (!meta_done && group != 0x0002) {
       meta_done = true;
       const std::string ts = syntax.substr(0, syntax.find_last_not_of(std::string("\0 ", 2)) + 1);
@@ -909,7 +912,8 @@ void check_dicom_lengths(const fs::path& f) {
                                    {0x0028, 0x0100, "US", 1}, {0x0028, 0x0101, "US", 1}, {0x0028, 0x0102, "US", 1},
                                    {0x0028, 0x0103, "US", 1}, {0x0028, 0x0030, "DS", 2}, {0x0028, 0x1052, "DS", 1},
                                    {0x0028, 0x1053, "DS", 1}, {0x0020, 0x0032, "DS", 3}, {0x0020, 0x0037, "DS", 6},
-                                   {0x0018, 0x0050, "DS", 1}, {0x0018, 0x0088, "DS", 1}, {0x0028, 0x0008, "IS", 1}};
+                                   {0x0018, 0x0050, "DS", 1}, {0x0018, 0x0088, "DS", 1}, {0x0028, 0x0008, "IS", 1},
+                                   {0x0028, 0x0009, "AT", 0}};  // FrameIncrementPointer: tags, any count
     if (depth == 0)
       for (const Known& k : kKnown) {
         if (k.group != group || k.elem != elem || len == 0) continue;  // empty: absent
@@ -917,9 +921,19 @@ void check_dicom_lengths(const fs::path& f) {
         const std::string name = "DICOM (" + std::to_string(group) + "," + std::to_string(elem) + ")";
         if (ev && d.compare(pos - 4, 2, k.vr) != 0)  // US, DS, IS: the 8-byte header, VR at byte 4
           throw InputError(where, name + ": expected VR " + k.vr);
+        if (k.vr[0] == 'A') {  // AT: 4 bytes per value
+          if (len % 4 != 0) throw InputError(where, name + ": expected tags of 4 bytes each");
+          continue;
+        }
         if (k.vr[0] == 'U' ? len != 2 * static_cast<uint32_t>(k.count)
                            : static_cast<int>(std::count(value.begin(), value.end(), '\\')) + 1 != k.count)
           throw InputError(where, name + ": expected " + std::to_string(k.count) + " value(s)");
+        // GDCM asserts on SamplesPerPixel > 4; a CT slice is greyscale anyway.
+        if (group == 0x0028 && elem == 0x0002 && u16(pos) != 1)
+          throw InputError(where, name + " SamplesPerPixel: expected 1 (greyscale), got " + std::to_string(u16(pos)));
+        // BitsAllocated 1 or 12 made GDCM assert in GetScalarType; the slice reader takes 8, 16, 32.
+        if (group == 0x0028 && elem == 0x0100 && u16(pos) != 8 && u16(pos) != 16 && u16(pos) != 32)
+          throw InputError(where, name + " BitsAllocated: expected 8, 16 or 32, got " + std::to_string(u16(pos)));
         if (k.vr[0] != 'U') {
           std::istringstream vs(value);
           std::string tok;
@@ -936,6 +950,8 @@ void check_dicom_lengths(const fs::path& f) {
     pos += len;
     if (depth > 1000) throw InputError(where, "DICOM sequences nested more than 1000 deep");
   }
+  if (saw_meta && !saw_data_set)
+    throw InputError(where, "DICOM file meta information (group 0002): the file ends inside it (no data set follows)");
 }
 
 // Decodes one file with GDCM, in this process. Throws InputError; returns false for a DICOMDIR.
