@@ -28,13 +28,16 @@ bool is_lesson_file(const std::string& path) {
 
 struct ViewArgs {
   std::string target, screenshot, view = "anterior", slice;
-  bool headless = false, labels = false, norealtime = false, frames_given = false;
+  bool headless = false, labels = false, norealtime = false, frames_given = false, view_given = false;
   int frames = 1, width = 1280, height = 720;
 };
 
 int run_view(const ViewArgs& a) {
-  const auto& [target, screenshot, view, slice, headless, labels, norealtime, frames_given, frames, width, height] = a;
+  const auto& [target, screenshot, given_view, slice, headless, labels, norealtime, frames_given, view_given, frames, width, height] = a;
   const SlicePlane slice_plane = parse_slice_option(slice);
+  // Without --view, a slice is seen from its cut side: axial from above, sagittal from the right.
+  std::string view = given_view;
+  if (!view_given && slice_plane.active()) view = slice_plane.axis == 2 ? "superior" : slice_plane.axis == 0 ? "right" : "anterior";
   std::unique_ptr<Lesson> lesson;
   io::OrganSet set;
   if (is_lesson_file(target)) {
@@ -150,12 +153,13 @@ void add_view(CLI::App& root, cli::Status* status) {
   app->add_option("--width", a->width, "width in pixels")->check(CLI::Range(16, 8192));
   app->add_option("--height", a->height, "height in pixels")->check(CLI::Range(16, 8192));
   app->add_option("--screenshot", a->screenshot, "write the last frame as PNG");
-  app->add_option("--view", a->view, "anterior|posterior|left|right|superior|inferior");
+  CLI::Option* view = app->add_option("--view", a->view, "anterior|posterior|left|right|superior|inferior (default anterior; with --slice, the plane's cut side)");
   app->add_flag("--labels", a->labels, "label every organ");
   app->add_option("--slice", a->slice, "cut the organs at a plane: axial:Z, coronal:Y or sagittal:X (mm, RAS)");
   app->add_flag("--no-realtime", a->norealtime, "do not ask for SCHED_FIFO for the haptic loop");
-  cli::on_run(app, status, [a, frames] {
+  cli::on_run(app, status, [a, frames, view] {
     a->frames_given = frames->count() > 0;
+    a->view_given = view->count() > 0;
     return run_view(*a);
   });
 }

@@ -457,6 +457,22 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         }
         if (ImGui::Button("show all")) for (auto& s : viewer->styles) s.visible = true;
       }
+      if (ImGui::CollapsingHeader("Slice", ImGuiTreeNodeFlags_DefaultOpen)) {
+        // The sectional view: plane and position (drag the slider); the CT on it when the set has one.
+        static const char* kPlanes[] = {"off", "sagittal (x)", "coronal (y)", "axial (z)"};
+        int plane = viewer->slice.axis + 1;
+        Eigen::Vector3f lo, hi;
+        scene->bounds_mm(lo, hi);
+        if (ImGui::Combo("plane", &plane, kPlanes, 4)) {
+          viewer->slice.axis = plane - 1;
+          if (viewer->slice.active()) viewer->slice.at_mm = 0.5f * (lo[plane - 1] + hi[plane - 1]);
+        }
+        if (viewer->slice.active()) {
+          const int a = viewer->slice.axis;
+          ImGui::SliderFloat("at (mm)", &viewer->slice.at_mm, lo[a] - 10.0f, hi[a] + 10.0f, "%.1f");
+          ImGui::TextDisabled("%s", viewer->ct() ? "CT on the plane" : "this organ set records no CT");
+        }
+      }
       if (ImGui::CollapsingHeader("Physics", ImGuiTreeNodeFlags_DefaultOpen)) {
         ImGui::Combo("model", &model_index, kPanelModels, kPanelModelCount);
         ImGui::SliderFloat("E (Pa)", &young, 500.0f, 20000.0f, "%.0f", ImGuiSliderFlags_Logarithmic);

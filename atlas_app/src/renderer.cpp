@@ -36,10 +36,13 @@ in vec3 v_world;
 uniform vec4 u_color;
 uniform float u_highlight;
 uniform vec4 u_clip;
+uniform int u_ct;
 out vec4 frag;
 void main() {
   if (dot(u_clip.xyz, v_world) + u_clip.w > 0.0) discard;
-  if (!gl_FrontFacing) { frag = vec4(u_color.rgb * 0.55, u_color.a); return; }
+  // With the CT on the plane, alpha marks what the CT quad shows: 0 = CT only (front faces are
+  // behind the plane), 0.45 = the section, the organ's colour over the CT.
+  if (!gl_FrontFacing) { frag = u_ct == 1 ? vec4(u_color.rgb, 0.45) : vec4(u_color.rgb * 0.55, u_color.a); return; }
   vec3 n = normalize(v_normal);
   vec3 v = normalize(-v_pos);
   vec3 l = normalize(vec3(0.3, 0.5, 1.0));
@@ -49,7 +52,24 @@ void main() {
   vec3 c = u_color.rgb * (0.28 + 0.72 * diff) + vec3(spec);
   float rim = pow(1.0 - max(dot(n, v), 0.0), 2.0);
   c = mix(c, vec3(1.0, 0.95, 0.35), u_highlight * (0.12 + 0.6 * rim));
-  frag = vec4(c, u_color.a);
+  frag = vec4(c, u_ct == 1 ? 0.0 : u_color.a);
+})";
+
+// The CT on the slice plane: window grey levels in the texture; texels outside the CT discarded.
+const char* kCtVs = R"(#version 330 core
+layout(location = 0) in vec3 in_pos;
+layout(location = 1) in vec2 in_uv;
+uniform mat4 u_mvp;
+out vec2 v_uv;
+void main() { v_uv = in_uv; gl_Position = u_mvp * vec4(in_pos, 1.0); })";
+const char* kCtFs = R"(#version 330 core
+in vec2 v_uv;
+uniform sampler2D u_tex;
+out vec4 frag;
+void main() {
+  vec4 t = texture(u_tex, v_uv);
+  if (t.a < 0.5) discard;
+  frag = vec4(t.rgb, 1.0);
 })";
 
 const char* kLineVs = R"(#version 330 core
@@ -115,6 +135,16 @@ Renderer::Renderer(const GlContext& context) : gl_(context.gl()) {
   organ_program_ = compile_program(gl_, kOrganVs, kOrganFs, "organ");
   line_program_ = compile_program(gl_, kLineVs, kLineFs, "line");
   imgui_program_ = compile_program(gl_, kImguiVs, kImguiFs, "imgui");
+  ct_program_ = compile_program(gl_, kCtVs, kCtFs, "ct slice");
+  gl_.GenVertexArrays(1, &ct_vao_);
+  gl_.GenBuffers(1, &ct_vbo_);
+  gl_.BindVertexArray(ct_vao_);
+  gl_.BindBuffer(GL_ARRAY_BUFFER, ct_vbo_);
+  gl_.BufferData(GL_ARRAY_BUFFER, 6 * 5 * sizeof(float), nullptr, GL_DYNAMIC_DRAW);
+  gl_.EnableVertexAttribArray(0);
+  gl_.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 5 * sizeof(float), nullptr);
+  gl_.EnableVertexAttribArray(1);
+  gl_.VertexAttribPointer(1, 2, GL_FLOAT, GL_FALSE, 5 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
   gl_.GenVertexArrays(1, &line_vao_);
   gl_.GenBuffers(1, &line_vbo_);
   gl_.BindVertexArray(line_vao_);
@@ -154,6 +184,10 @@ Renderer::~Renderer() {
   gl_.DeleteBuffers(1, &imgui_ebo_);
   gl_.DeleteVertexArrays(1, &imgui_vao_);
   if (font_texture_) gl_.DeleteTextures(1, &font_texture_);
+  if (ct_texture_) gl_.DeleteTextures(1, &ct_texture_);
+  gl_.DeleteBuffers(1, &ct_vbo_);
+  gl_.DeleteVertexArrays(1, &ct_vao_);
+  gl_.DeleteProgram(ct_program_);
   gl_.DeleteProgram(organ_program_);
   gl_.DeleteProgram(line_program_);
   gl_.DeleteProgram(imgui_program_);
@@ -241,7 +275,8 @@ void Renderer::begin_frame(const Cues& cues, int width, int height) {
   width_ = width;
   height_ = height;
   gl_.Viewport(0, 0, width, height);
-  gl_.ClearColor(cues.background[0], cues.background[1], cues.background[2], 1.0f);
+  // Alpha 0 under the CT plane: the CT quad shows where alpha is 0 (see kOrganFs).
+  gl_.ClearColor(cues.background[0], cues.background[1], cues.background[2], ct_on_plane() ? 0.0f : 1.0f);
   gl_.DepthMask(GL_TRUE);
   gl_.Clear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
 }
@@ -255,6 +290,7 @@ void Renderer::draw_organs(const Camera& camera, const std::vector<OrganStyle>& 
   const GLint u_highlight = gl_.GetUniformLocation(organ_program_, "u_highlight");
   const Eigen::Vector4f clip = slice_.clip();
   gl_.Uniform4f(gl_.GetUniformLocation(organ_program_, "u_clip"), clip[0], clip[1], clip[2], clip[3]);
+  gl_.Uniform1i(gl_.GetUniformLocation(organ_program_, "u_ct"), ct_on_plane() ? 1 : 0);
   gl_.Enable(GL_DEPTH_TEST);
   gl_.DepthFunc(GL_LESS);
   if (slice_.active()) gl_.Disable(GL_CULL_FACE);  // the cut shows the inside
@@ -283,7 +319,7 @@ void Renderer::draw_organs(const Camera& camera, const std::vector<OrganStyle>& 
   });
   if (!transparent.empty()) {
     gl_.Enable(GL_BLEND);
-    gl_.BlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    gl_.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);  // alpha kept
     gl_.DepthMask(GL_FALSE);
     for (size_t i : transparent) draw(i);
     gl_.DepthMask(GL_TRUE);
@@ -307,7 +343,7 @@ void Renderer::draw_lines(const Camera& camera, const std::vector<Line>& lines) 
   gl_.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data(),
                  GL_STREAM_DRAW);
   gl_.Enable(GL_BLEND);
-  gl_.BlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+  gl_.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);  // alpha kept
   gl_.DrawArrays(GL_LINES, 0, static_cast<GLsizei>(lines.size() * 2));
   gl_.Disable(GL_BLEND);
   gl_.BindVertexArray(0);
@@ -384,7 +420,7 @@ void Renderer::draw_slice(const Camera& camera, const SlicePlane& plane) {
   std::vector<Line> lines;
   const std::array<float, 4> edge{0.55f, 0.85f, 1.0f, 0.9f}, hatch{0.55f, 0.85f, 1.0f, 0.10f};
   for (int k = 0; k < 4; ++k) lines.push_back({corner[k], corner[(k + 1) % 4], edge});
-  const int n = 16;  // hatching: reads as a sheet on every back end, without a blended fill
+  const int n = ct_on_plane() ? 0 : 16;  // hatching: reads as a sheet, without a blended fill
   for (int k = 1; k < n; ++k) {
     const float t = static_cast<float>(k) / n;
     lines.push_back({corner[0] + t * (corner[1] - corner[0]), corner[3] + t * (corner[2] - corner[3]), hatch});
@@ -392,6 +428,51 @@ void Renderer::draw_slice(const Camera& camera, const SlicePlane& plane) {
   }
   gl_.Enable(GL_DEPTH_TEST);
   draw_lines(camera, lines);
+}
+
+void Renderer::set_slice_image(const std::vector<uint8_t>& rgba, int w, int h,
+                               const std::array<Eigen::Vector3f, 4>& corners) {
+  if (!ct_texture_) gl_.GenTextures(1, &ct_texture_);
+  gl_.BindTexture(GL_TEXTURE_2D, ct_texture_);
+  gl_.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+  gl_.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+  gl_.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+  gl_.TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+  gl_.PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+  gl_.TexImage2D(GL_TEXTURE_2D, 0, GL_RGBA, w, h, 0, GL_RGBA, GL_UNSIGNED_BYTE, rgba.data());
+  const float uv[4][2] = {{0, 0}, {1, 0}, {1, 1}, {0, 1}};
+  std::vector<float> data;
+  for (int k : {0, 1, 2, 0, 2, 3})
+    data.insert(data.end(), {corners[k].x(), corners[k].y(), corners[k].z(), uv[k][0], uv[k][1]});
+  gl_.BindBuffer(GL_ARRAY_BUFFER, ct_vbo_);
+  gl_.BufferSubData(GL_ARRAY_BUFFER, 0, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data());
+  slice_image_ = true;
+}
+
+void Renderer::draw_slice_image(const Camera& camera) {
+  if (!ct_on_plane()) return;
+  const Eigen::Matrix4f mvp = camera.projection() * camera.view();
+  gl_.UseProgram(ct_program_);
+  gl_.UniformMatrix4fv(gl_.GetUniformLocation(ct_program_, "u_mvp"), 1, GL_FALSE, mvp.data());
+  gl_.Uniform1i(gl_.GetUniformLocation(ct_program_, "u_tex"), 0);
+  gl_.ActiveTexture(GL_TEXTURE0);
+  gl_.BindTexture(GL_TEXTURE_2D, ct_texture_);
+  gl_.Enable(GL_DEPTH_TEST);
+  gl_.DepthFunc(GL_LEQUAL);
+  gl_.Disable(GL_CULL_FACE);
+  // CT where the organs pass left alpha 0, the section colour over it where they left 0.45.
+  gl_.Enable(GL_BLEND);
+  gl_.BlendFuncSeparate(GL_ONE_MINUS_DST_ALPHA, GL_DST_ALPHA, GL_ONE, GL_ZERO);
+  gl_.BindVertexArray(ct_vao_);
+  gl_.DrawArrays(GL_TRIANGLES, 0, 6);
+  gl_.BindVertexArray(0);
+  gl_.Disable(GL_BLEND);
+  gl_.DepthFunc(GL_LESS);
+  // Opaque again everywhere (pictures and the window keep alpha 1).
+  gl_.ColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_TRUE);
+  gl_.ClearColor(0, 0, 0, 1);
+  gl_.Clear(GL_COLOR_BUFFER_BIT);
+  gl_.ColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
 }
 
 void Renderer::prepare_imgui_fonts() {

@@ -8,6 +8,23 @@
 
 namespace softatlas::app {
 
+namespace {
+
+// One CT read per set folder for the process: the window rebuilds its Viewer on reset.
+std::shared_ptr<const io::CtImage> load_ct(const io::OrganSet& set) {
+  static std::string cached_path;
+  static std::shared_ptr<const io::CtImage> cached;
+  const std::string path = set.ct_path();
+  if (path.empty()) return nullptr;
+  if (path != cached_path || !cached) {
+    cached = std::make_shared<const io::CtImage>(io::read_ct_nifti(path));
+    cached_path = path;
+  }
+  return cached;
+}
+
+}  // namespace
+
 std::string overlay_text(const std::string& text) {
   if (text.size() <= kOverlayChars) return text;
   size_t cut = kOverlayChars;
@@ -44,6 +61,7 @@ Viewer::Viewer(GlContext& context, const AtlasScene& scene)
   }
   bvh_.build(ptrs);
   set_geometry(positions_);
+  ct_ = load_ct(scene.set());
   Eigen::Vector3f lo, hi;
   scene.bounds_mm(lo, hi);
   renderer_->set_bounds(lo, hi);
@@ -105,11 +123,58 @@ void Viewer::begin() {
   ImGui::NewFrame();
 }
 
+void Viewer::update_slice_image() {
+  if (!ct_ || !slice.active()) {
+    ct_slice_ = SlicePlane{};
+    return renderer_->clear_slice_image();
+  }
+  if (ct_slice_.active() && ct_slice_.axis == slice.axis && ct_slice_.at_mm == slice.at_mm) return;
+  ct_slice_ = slice;
+  // The plane over the CT's world box; texels about the CT's finest voxel spacing (<= 1024).
+  const io::CtImage& ct = *ct_;
+  const auto b = ct.world_bounds();
+  const int a = slice.axis, u = (a + 1) % 3, v = (a + 2) % 3;
+  if (slice.at_mm < b[a] - 0.5 || slice.at_mm > b[a + 3] + 0.5) return renderer_->clear_slice_image();
+  double spacing = 1e9;
+  for (int c = 0; c < 3; ++c) {
+    const auto& m = ct.ijk_to_ras;
+    spacing = std::min(spacing, std::sqrt(m[c] * m[c] + m[4 + c] * m[4 + c] + m[8 + c] * m[8 + c]));
+  }
+  const double lu = b[u] - 0.5 * spacing, hu = b[u + 3] + 0.5 * spacing, lv = b[v] - 0.5 * spacing, hv = b[v + 3] + 0.5 * spacing;
+  const int w = std::clamp(static_cast<int>(std::ceil((hu - lu) / spacing)), 2, 1024);
+  const int h = std::clamp(static_cast<int>(std::ceil((hv - lv) / spacing)), 2, 1024);
+  const io::CtRecord& rec = *scene_.set().ct;
+  const double lo_hu = rec.window_level_hu - 0.5 * rec.window_width_hu;
+  std::vector<uint8_t> rgba(static_cast<size_t>(w) * h * 4, 0);
+  std::array<double, 3> p{};
+  p[a] = slice.at_mm;
+  for (int j = 0; j < h; ++j)
+    for (int i = 0; i < w; ++i) {
+      p[u] = lu + (i + 0.5) * (hu - lu) / w;
+      p[v] = lv + (j + 0.5) * (hv - lv) / h;
+      float x;
+      if (!ct.sample(p, &x)) continue;
+      const uint8_t g = static_cast<uint8_t>(std::lround(255.0 * std::clamp((x - lo_hu) / rec.window_width_hu, 0.0, 1.0)));
+      uint8_t* px = &rgba[4 * (static_cast<size_t>(j) * w + i)];
+      px[0] = px[1] = px[2] = g;
+      px[3] = 255;
+    }
+  std::array<Eigen::Vector3f, 4> corners;
+  for (int k = 0; k < 4; ++k) {
+    corners[k][a] = slice.at_mm;
+    corners[k][u] = static_cast<float>((k == 1 || k == 2) ? hu : lu);
+    corners[k][v] = static_cast<float>(k >= 2 ? hv : lv);
+  }
+  renderer_->set_slice_image(rgba, w, h, corners);
+}
+
 void Viewer::end() {
+  renderer_->set_slice(slice);
+  update_slice_image();
   renderer_->begin_frame(cues, camera.width, camera.height);
   renderer_->draw_cues(camera, cues);
-  renderer_->set_slice(slice);
   renderer_->draw_organs(camera, styles);
+  renderer_->draw_slice_image(camera);
   renderer_->draw_slice(camera, slice);
   // Overlays (tool, force arrow) on top: the tissue pulled toward the hand would hide them.
   renderer_->set_depth_test(false);

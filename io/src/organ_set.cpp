@@ -1,6 +1,7 @@
 // atlas.yaml + organs/*.ply + connections.csv (docs/organ-set.md).
 #include "softatlas/io/organ_set.hpp"
 #include "softatlas/io/output_folder.hpp"
+#include "softatlas/io/ct_image.hpp"
 
 #include <yaml-cpp/yaml.h>
 #include <signal.h>
@@ -115,6 +116,11 @@ const OrganEntry* OrganSet::find(const std::string& name) const {
   for (const OrganEntry& o : organs)
     if (o.name == name) return &o;
   return nullptr;
+}
+
+std::string OrganSet::ct_path() const {
+  if (!ct) return "";
+  return (fs::path(folder) / ct->file).string();
 }
 
 int OrganSet::index_of(const std::string& name) const {
@@ -248,7 +254,7 @@ OrganSet read_organ_set(const std::string& folder) {
     throw InputError(file, printable_text(e.what(), 200));
   }
   check_keys(file, root,
-             {"softatlas_organ_set", "units", "space", "organs", "connections", "provenance", "quality"},
+             {"softatlas_organ_set", "units", "space", "organs", "connections", "provenance", "quality", "ct"},
              "atlas.yaml");
   // The format version: this reader knows version 1 (docs/organ-set.md).
   if (!root["softatlas_organ_set"])
@@ -343,6 +349,37 @@ OrganSet read_organ_set(const std::string& folder) {
         throw InputError(where, "vertex_b " + std::to_string(c.vertex_b) + " outside organ '" + printable_text(c.organ_b) + "'");
     }
   }
+  if (root["ct"]) {  // ct: {file: ct.nii.gz, window_width_hu: 400, window_level_hu: 40}
+    const YAML::Node& cn = root["ct"];
+    check_keys(file, cn, {"file", "window_width_hu", "window_level_hu"}, "ct");
+    CtRecord ct;
+    if (!cn["file"]) throw InputError(at(file, cn), "ct: missing 'file' (the CT in the set, e.g. ct.nii.gz)");
+    ct.file = get<std::string>(file, cn["file"], "a file name for 'file'");
+    const fs::path rel(ct.file);
+    bool up = false;
+    for (const auto& part : rel) up |= part == "..";
+    if (ct.file.empty() || rel.is_absolute() || up)
+      throw InputError(at(file, cn["file"]), "ct: 'file' must be a path inside the set folder, got '" + printable_text(ct.file) + "'");
+    if (cn["window_width_hu"]) {
+      ct.window_width_hu = get_number(file, cn["window_width_hu"], "window_width_hu");
+      if (!(ct.window_width_hu >= 1 && ct.window_width_hu <= 10000))
+        throw InputError(at(file, cn["window_width_hu"]), "'window_width_hu' must be in 1..10000 HU");
+    }
+    if (cn["window_level_hu"]) {
+      ct.window_level_hu = get_number(file, cn["window_level_hu"], "window_level_hu");
+      if (!(ct.window_level_hu >= -2000 && ct.window_level_hu <= 5000))
+        throw InputError(at(file, cn["window_level_hu"]), "'window_level_hu' must be in -2000..5000 HU");
+    }
+    const std::string ct_file = (fs::path(folder) / ct.file).string();
+    if (!fs::is_regular_file(ct_file, ec))
+      throw InputError(at(file, cn["file"]), "ct: file '" + printable_text(ct.file) + "' not found in the set");
+    try {
+      read_ct_nifti(ct_file, true);  // the header and the length; the viewer reads the voxels
+    } catch (const InputError& e) {
+      throw InputError(at(file, cn["file"]), std::string("ct: ") + e.what());
+    }
+    set.ct = ct;
+  }
   if (root["provenance"] && root["provenance"].IsMap())
     for (const auto& kv : root["provenance"])
       set.provenance[kv.first.as<std::string>()] =
@@ -407,6 +444,20 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
       write_ply(o.mesh, (tmp / mesh_file).string());
     }
     y << "connections: " << set.connections_file << "\n";
+    if (set.ct) {
+      std::ostringstream w;
+      w.precision(10);
+      w << "ct: {file: " << yaml_escape(set.ct->file) << ", window_width_hu: " << set.ct->window_width_hu
+        << ", window_level_hu: " << set.ct->window_level_hu << "}\n";
+      y << w.str();
+      if (!extra_files.count(set.ct->file)) {  // a set read and written again keeps its CT
+        const std::string from = set.ct_path();
+        if (set.folder.empty() || !fs::is_regular_file(from, ec))
+          throw InputError(folder, "the organ set records a CT (" + set.ct->file + ") but none was given to write");
+        fs::create_directories((tmp / set.ct->file).parent_path());
+        fs::copy_file(from, tmp / set.ct->file, fs::copy_options::overwrite_existing);
+      }
+    }
     if (!set.provenance.empty()) {
       y << "provenance:\n";
       for (const auto& [k, v] : set.provenance) y << "  " << yaml_escape(k) << ": " << yaml_escape(v) << "\n";

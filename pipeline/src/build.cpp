@@ -16,6 +16,7 @@
 #include <regex>
 #include <set>
 
+#include "softatlas/io/ct_image.hpp"
 #include "softatlas/io/organ_set.hpp"
 #include "softatlas/pipeline/label_table.hpp"
 #include "softatlas/pipeline/topology.hpp"
@@ -95,6 +96,44 @@ std::string name_of(const LoadedLabels& l, int value) {
   if (l.volume.label_names.empty()) return label_name(value);
   const auto it = l.volume.label_names.find(value);
   return it == l.volume.label_names.end() ? std::string() : it->second;
+}
+
+// The CT cropped to the organs' bounding box plus margin_mm (in voxel index space, so the grid and
+// its transform are the CT's own), as int16 HU (rounded, clamped): what the viewer draws on a
+// slice plane. The transform is the CT's ijk_to_ras shifted to the crop's first voxel.
+io::CtImage crop_ct(const Volume& ct, const std::vector<io::OrganEntry>& organs, double margin_mm) {
+  double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+  for (const auto& e : organs)
+    for (size_t i = 0; i < e.mesh.vertices.size(); ++i) {
+      lo[i % 3] = std::min(lo[i % 3], e.mesh.vertices[i]);
+      hi[i % 3] = std::max(hi[i % 3], e.mesh.vertices[i]);
+    }
+  int i0[3] = {ct.dims[0], ct.dims[1], ct.dims[2]}, i1[3] = {-1, -1, -1};
+  for (int c = 0; c < 8; ++c) {
+    const std::array<double, 3> p{(c & 1) ? hi[0] + margin_mm : lo[0] - margin_mm,
+                                  (c & 2) ? hi[1] + margin_mm : lo[1] - margin_mm,
+                                  (c & 4) ? hi[2] + margin_mm : lo[2] - margin_mm};
+    const auto v = ct.voxel(p);
+    for (int d = 0; d < 3; ++d) {
+      i0[d] = std::min(i0[d], static_cast<int>(std::floor(v[d])));
+      i1[d] = std::max(i1[d], static_cast<int>(std::ceil(v[d])));
+    }
+  }
+  io::CtImage out;
+  for (int d = 0; d < 3; ++d) {
+    i0[d] = std::clamp(i0[d], 0, ct.dims[d] - 1);
+    i1[d] = std::clamp(i1[d], i0[d], ct.dims[d] - 1);
+    out.dims[d] = i1[d] - i0[d] + 1;
+  }
+  out.ijk_to_ras = ct.ijk_to_ras;
+  const auto origin = ct.world(i0[0], i0[1], i0[2]);
+  for (int r = 0; r < 3; ++r) out.ijk_to_ras[r * 4 + 3] = origin[r];
+  out.hu.reserve(static_cast<size_t>(out.dims[0]) * out.dims[1] * out.dims[2]);
+  for (int k = i0[2]; k <= i1[2]; ++k)
+    for (int j = i0[1]; j <= i1[1]; ++j)
+      for (int i = i0[0]; i <= i1[0]; ++i)
+        out.hu.push_back(static_cast<int16_t>(std::lround(std::clamp(static_cast<double>(ct.values[ct.index(i, j, k)]), -32768.0, 32767.0))));
+  return out;
 }
 
 bool boxes_overlap(const std::array<double, 6>& a, const std::array<double, 6>& b, double pad) {
@@ -529,8 +568,17 @@ BuildResult build_organ_set(const BuildOptions& o) {
   result.quality_json = quality.dump(2) + "\n";
   result.organs = set.organs.size();
   result.connections = set.connections.size();
+  std::map<std::string, std::string> files{{"quality.json", result.quality_json}};
+  if (!mesh_mode) {  // the CT itself, for sectional views (docs/organ-set.md, ct)
+    const io::CtImage crop = crop_ct(ct, set.organs, 20.0);
+    io::CtRecord rec;  // soft-tissue window: 400 / 40 HU
+    set.ct = rec;
+    files[rec.file] = io::encode_ct_nifti_gz(crop);
+    say("write: CT cropped to the organs + 20 mm: %s voxels, %s MB", std::to_string(crop.dims[0]) + "x" +
+        std::to_string(crop.dims[1]) + "x" + std::to_string(crop.dims[2]), fmt(files[rec.file].size() / 1e6));
+  }
   say("write: %s", o.output);
-  io::write_organ_set(set, o.output, {{"quality.json", result.quality_json}}, o.overwrite);
+  io::write_organ_set(set, o.output, files, o.overwrite);
   result.times.add("write", since(t0));
   return result;
 }

@@ -1,7 +1,12 @@
 // Headless rendering of a known scene: organ colour where the organ is, background elsewhere.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <filesystem>
+
+#include "softatlas/io/ct_image.hpp"
 
 #include "softatlas/app/viewer.hpp"
 #include "test_util.hpp"
@@ -75,6 +80,83 @@ TEST(Renderer, WritesAReadablePng) {
   EXPECT_EQ(sig[2], 'N');
   EXPECT_EQ(sig[3], 'G');
   EXPECT_THROW(write_png("/nonexistent-dir/x.png", 2, 2, std::vector<uint8_t>(16)), std::runtime_error);
+}
+
+// The CT on an axial slice: a set of the liver with a CT around it (HU 40 left of x = xm, 140
+// right of it: grey 128 and 191 in the 400/40 window), sliced at the liver's middle and seen from
+// above. On the plane outside the liver the pixels are the CT's grey, the step sits at xm (the
+// world mapping), the liver's section shows its colour over the CT; without the CT the plane
+// shows the background there.
+TEST(Renderer, AxialSliceShowsTheCtGreyOnThePlaneAndTheSectionOverIt) {
+  const io::OrganSet atlas = io::read_organ_set(test::atlas_dir());
+  io::OrganSet set;
+  set.organs = {*atlas.find("liver")};
+  set.organs[0].regions.clear();
+  double lo[3] = {1e9, 1e9, 1e9}, hi[3] = {-1e9, -1e9, -1e9}, c[3] = {0, 0, 0};
+  const auto& V = set.organs[0].mesh.vertices;
+  for (size_t i = 0; i < V.size(); ++i) {
+    lo[i % 3] = std::min(lo[i % 3], V[i]);
+    hi[i % 3] = std::max(hi[i % 3], V[i]);
+    c[i % 3] += V[i] / (V.size() / 3);
+  }
+  const double xm = 0.5 * (lo[0] + hi[0]), zm = c[2];
+  io::CtImage ct;
+  for (int d = 0; d < 3; ++d) ct.dims[d] = static_cast<int>((hi[d] - lo[d] + 40) / 2) + 1;
+  ct.ijk_to_ras = {2, 0, 0, lo[0] - 20, 0, 2, 0, lo[1] - 20, 0, 0, 2, lo[2] - 20, 0, 0, 0, 1};
+  for (int k = 0; k < ct.dims[2]; ++k)
+    for (int j = 0; j < ct.dims[1]; ++j)
+      for (int i = 0; i < ct.dims[0]; ++i) ct.hu.push_back(static_cast<int16_t>(ct.world(i, j, k)[0] < xm ? 40 : 140));
+  set.ct = io::CtRecord{"ct.nii.gz", 400, 40};
+  const std::string dir = test::scratch("ct_slice") + "/set";
+  io::write_organ_set(set, dir, {{"ct.nii.gz", io::encode_ct_nifti_gz(ct)}});
+  const io::OrganSet with_ct = io::read_organ_set(dir);
+  ASSERT_TRUE(with_ct.ct.has_value());
+  io::OrganSet without_ct = with_ct;
+  without_ct.ct.reset();
+
+  auto render = [&](const io::OrganSet& s, Camera* cam) {
+    AtlasScene scene(s, {"liver"}, {}, PhysicsSettings{});
+    auto ctx = make_osmesa_context(320, 240);
+    Viewer viewer(*ctx, scene);
+    viewer.cues.grid = false;
+    viewer.cues.axes = false;
+    viewer.camera.set_view("superior");
+    viewer.frame_all();
+    viewer.slice = SlicePlane{2, static_cast<float>(zm), true};
+    viewer.render();
+    *cam = viewer.camera;
+    if (&s == &with_ct) viewer.save_png(test::scratch("ct_slice_png") + "/axial.png");
+    return viewer.screenshot();
+  };
+  Camera cam;
+  const std::vector<uint8_t> px = render(with_ct, &cam);
+  auto pixel = [&](const std::vector<uint8_t>& img, double x, double y) {
+    float fx = 0, fy = 0;
+    EXPECT_TRUE(cam.project(Eigen::Vector3f(x, y, zm), fx, fy));
+    const int ix = std::clamp(static_cast<int>(fx), 0, 319), iy = std::clamp(static_cast<int>(fy), 0, 239);
+    const uint8_t* p = &img[(static_cast<size_t>(iy) * 320 + ix) * 4];
+    return std::array<int, 4>{p[0], p[1], p[2], p[3]};
+  };
+  auto expect_grey = [&](std::array<int, 4> p, int level, const char* where) {
+    EXPECT_NEAR(p[0], level, 3) << where;
+    EXPECT_NEAR(p[1], level, 3) << where;
+    EXPECT_NEAR(p[2], level, 3) << where;
+    EXPECT_EQ(p[3], 255) << where;
+  };
+  // In the CT's 20 mm margin outside the liver (front corners of the box), both sides of xm.
+  const double y_out = lo[1] - 12;
+  expect_grey(pixel(px, lo[0] - 12, y_out), 128, "left of xm");
+  expect_grey(pixel(px, hi[0] + 12, y_out), 191, "right of xm");
+  expect_grey(pixel(px, xm - 5, y_out), 128, "5 mm left of the step");
+  expect_grey(pixel(px, xm + 5, y_out), 191, "5 mm right of the step");
+  // The section: the liver's colour over the CT (red above blue), not a grey.
+  const auto cap = pixel(px, c[0], c[1]);
+  EXPECT_GT(cap[0] - cap[2], 25) << cap[0] << " " << cap[1] << " " << cap[2];
+  // Without the CT the plane shows the background there.
+  const std::vector<uint8_t> none = render(without_ct, &cam);
+  const auto bg = pixel(none, lo[0] - 12, y_out);
+  EXPECT_NEAR(bg[0], 26, 3);
+  EXPECT_NEAR(bg[2], 33, 3);
 }
 
 }  // namespace

@@ -1,9 +1,11 @@
 // Organ sets: write, read back, validate; scene conversion to SI.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
+#include "softatlas/io/ct_image.hpp"
 #include "softatlas/io/organ_set.hpp"
 #include "softatlas/io/scene.hpp"
 #include "softatlas/sim/error.hpp"
@@ -183,6 +185,93 @@ TEST(OrganSet, BadManifestsNameFileLineAndColumn) {
   }
 }
 
+// A small CT: 8 x 6 x 5 voxels of 2 x 2 x 3 mm, HU = 10 i - 1000 (a ramp along x), an oblique-free
+// sform with an offset; an encoded file read back has the same voxels and transform.
+io::CtImage small_ct() {
+  io::CtImage ct;
+  ct.dims = {8, 6, 5};
+  ct.ijk_to_ras = {2, 0, 0, -10, 0, 2, 0, 20, 0, 0, 3, 300, 0, 0, 0, 1};
+  for (int k = 0; k < 5; ++k)
+    for (int j = 0; j < 6; ++j)
+      for (int i = 0; i < 8; ++i) ct.hu.push_back(static_cast<int16_t>(10 * i - 1000 + j + 100 * k));
+  return ct;
+}
+
+TEST(OrganSet, CtBlockRoundTripsWithItsFileAndWindow) {
+  const fs::path dir = fresh("softatlas_set_ct");
+  io::OrganSet set = small_set();
+  set.ct = io::CtRecord{"ct.nii.gz", 350, 50};
+  io::write_organ_set(set, dir.string(), {{"ct.nii.gz", io::encode_ct_nifti_gz(small_ct())}});
+  const io::OrganSet back = io::read_organ_set(dir.string());
+  ASSERT_TRUE(back.ct.has_value());
+  EXPECT_EQ(back.ct->file, "ct.nii.gz");
+  EXPECT_DOUBLE_EQ(back.ct->window_width_hu, 350);
+  EXPECT_DOUBLE_EQ(back.ct->window_level_hu, 50);
+  const io::CtImage ct = io::read_ct_nifti(back.ct_path());
+  EXPECT_EQ(ct.dims, small_ct().dims);
+  EXPECT_EQ(ct.hu, small_ct().hu);
+  EXPECT_EQ(ct.ijk_to_ras, small_ct().ijk_to_ras);
+  // World mapping and trilinear sampling: voxel (3, 2, 1) is at (-4, 24, 303) mm.
+  const auto w = ct.world(3, 2, 1);
+  EXPECT_DOUBLE_EQ(w[0], -4);
+  EXPECT_DOUBLE_EQ(w[1], 24);
+  EXPECT_DOUBLE_EQ(w[2], 303);
+  float hu = 0;
+  ASSERT_TRUE(ct.sample({-3, 24, 303}, &hu));  // half way between i = 3 and 4
+  EXPECT_NEAR(hu, 10 * 3.5 - 1000 + 2 + 100, 1e-4);
+  EXPECT_FALSE(ct.sample({-30, 24, 303}, &hu));
+  // Written again from the folder it was read from, the set keeps its CT.
+  const fs::path again = fresh("softatlas_set_ct_again");
+  io::write_organ_set(back, again.string());
+  EXPECT_EQ(io::read_ct_nifti(io::read_organ_set(again.string()).ct_path()).hu, small_ct().hu);
+  // Sets without a CT read as before.
+  const fs::path plain = fresh("softatlas_set_no_ct");
+  io::write_organ_set(small_set(), plain.string());
+  EXPECT_FALSE(io::read_organ_set(plain.string()).ct.has_value());
+  // A set that says it has a CT but gives none is not written.
+  EXPECT_THROW(io::write_organ_set(set, fresh("softatlas_set_ct_missing").string()), InputError);
+}
+
+TEST(OrganSet, BadCtBlocksNameTheLineAndTheField) {
+  const fs::path dir = fresh("softatlas_set_ct_bad");
+  io::OrganSet set = small_set();
+  set.ct = io::CtRecord{};
+  io::write_organ_set(set, dir.string(), {{"ct.nii.gz", io::encode_ct_nifti_gz(small_ct())}});
+  const std::string yaml = (dir / "atlas.yaml").string();
+  std::string text;
+  {
+    std::ifstream in(yaml);
+    text.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  const std::string good = "ct: {file: ct.nii.gz, window_width_hu: 400, window_level_hu: 40}";
+  ASSERT_NE(text.find(good), std::string::npos) << text;
+  const size_t line = static_cast<size_t>(std::count(text.begin(), text.begin() + text.find(good), '\n')) + 1;
+  auto expect_error = [&](const std::string& block, const std::string& needle) {
+    std::string t = text;
+    t.replace(t.find(good), good.size(), block);
+    std::ofstream(yaml) << t;
+    try {
+      io::read_organ_set(dir.string());
+      ADD_FAILURE() << "accepted: " << block;
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(needle), std::string::npos) << what;
+      EXPECT_NE(what.find("atlas.yaml:" + std::to_string(line) + ":"), std::string::npos) << what;
+    }
+  };
+  expect_error("ct: {file: missing.nii.gz}", "ct: file 'missing.nii.gz' not found");
+  expect_error("ct: {file: ct.nii.gz, window_width_hu: -5}", "'window_width_hu' must be in 1..10000");
+  expect_error("ct: {file: ct.nii.gz, window_width_hu: wide}", "a number for 'window_width_hu'");
+  expect_error("ct: {file: ct.nii.gz, window_level_hu: .nan}", "'window_level_hu' must be finite");
+  expect_error("ct: {file: ct.nii.gz, window_level_hu: 9000}", "'window_level_hu' must be in -2000..5000");
+  expect_error("ct: {file: ../ct.nii.gz}", "inside the set folder");
+  expect_error("ct: {window_width_hu: 400}", "missing 'file'");
+  expect_error("ct: {file: ct.nii.gz, window: 400}", "unknown key 'window' in ct");
+  expect_error("ct: ct.nii.gz", "ct: expected a map");
+  // A file that is not a NIfTI CT.
+  std::ofstream(dir / "not_ct.nii") << "hello";
+  expect_error("ct: {file: not_ct.nii}", "truncated NIfTI header");
+}
 
 // connections.csv numbers are whole tokens (12abc and 1e999 were read as 12 and 1), CR-only line
 // endings are line breaks, and atlas.yaml's format version is checked (issue 17).

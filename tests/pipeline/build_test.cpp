@@ -90,6 +90,43 @@ TEST(Build, ChestCropHeartAndPulmonaryArteryThroughTheCommand) {
   EXPECT_EQ(q["organs"]["heart"]["closed"], true);
   EXPECT_TRUE(q["organs"]["heart"].contains("hausdorff_mm"));
   EXPECT_EQ(set.provenance.at("ct_sha256").substr(0, 16), "4da078fe43c9aa4d");  // README checksum
+  // The set records its CT: ct.nii.gz, int16 HU cropped to the organs + 20 mm, soft-tissue
+  // window. Read back by the pipeline's own (VTK) reader, every voxel is the source CT's value at
+  // the same world point (the sform carries the crop's offset), and the organs lie inside it.
+  ASSERT_TRUE(set.ct.has_value());
+  EXPECT_EQ(set.ct->file, "ct.nii.gz");
+  EXPECT_DOUBLE_EQ(set.ct->window_width_hu, 400);
+  EXPECT_DOUBLE_EQ(set.ct->window_level_hu, 40);
+  {
+    const Volume src = read_volume(chest("ct_heart_crop.nii.gz"));
+    const Volume crop = read_volume(set_dir + "/ct.nii.gz");
+    EXPECT_LT(fs::file_size(set_dir + "/ct.nii.gz"), 4u << 20);
+    EXPECT_LE(crop.voxel_count(), src.voxel_count());
+    const auto b = crop.world_bounds();
+    const auto sb = src.world_bounds();
+    double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
+    for (const auto& e : set.organs)
+      for (size_t i = 0; i < e.mesh.vertices.size(); ++i) {
+        lo[i % 3] = std::min(lo[i % 3], e.mesh.vertices[i]);
+        hi[i % 3] = std::max(hi[i % 3], e.mesh.vertices[i]);
+      }
+    for (int d = 0; d < 3; ++d) {  // the organs + >= 10 mm, or up to the source CT's edge
+      EXPECT_LE(b[d], std::max(lo[d] - 10.0, sb[d]) + 1e-3) << d;
+      EXPECT_GE(b[d + 3], std::min(hi[d] + 10.0, sb[d + 3]) - 1e-3) << d;
+    }
+    size_t checked = 0;
+    for (size_t n = 0; n < crop.voxel_count(); n += 997, ++checked) {
+      const int i = static_cast<int>(n % crop.dims[0]), j = static_cast<int>((n / crop.dims[0]) % crop.dims[1]),
+                k = static_cast<int>(n / (static_cast<size_t>(crop.dims[0]) * crop.dims[1]));
+      const auto v = src.voxel(crop.world(i, j, k));
+      const int si = static_cast<int>(std::lround(v[0])), sj = static_cast<int>(std::lround(v[1])), sk = static_cast<int>(std::lround(v[2]));
+      EXPECT_NEAR(v[0], si, 1e-3);
+      EXPECT_NEAR(v[2], sk, 1e-3);
+      ASSERT_TRUE(si >= 0 && sj >= 0 && sk >= 0 && si < src.dims[0] && sj < src.dims[1] && sk < src.dims[2]);
+      EXPECT_NEAR(crop.values[n], std::round(src.values[src.index(si, sj, sk)]), 0.5);
+    }
+    EXPECT_GT(checked, 100u);
+  }
 
   std::string report;
   EXPECT_TRUE(check_organ_set(set_dir, &report));

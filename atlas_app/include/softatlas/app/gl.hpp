@@ -42,6 +42,7 @@ typedef void (APIENTRYP SaGlDeleteTexturesFn)(GLsizei n, const GLuint* textures)
 typedef void (APIENTRYP SaGlBindTextureFn)(GLenum target, GLuint texture);
 typedef void (APIENTRYP SaGlTexImage2DFn)(GLenum target, GLint level, GLint internalformat, GLsizei w, GLsizei h, GLint border, GLenum format, GLenum type, const void* pixels);
 typedef void (APIENTRYP SaGlTexParameteriFn)(GLenum target, GLenum pname, GLint param);
+typedef void (APIENTRYP SaGlColorMaskFn)(GLboolean r, GLboolean g, GLboolean b, GLboolean a);
 
 #define SOFTATLAS_GL_FUNCTIONS(X)                                  \
   X(SaGlGetStringFn, GetString)                                 \
@@ -99,6 +100,7 @@ typedef void (APIENTRYP SaGlTexParameteriFn)(GLenum target, GLenum pname, GLint 
   X(SaGlBindTextureFn, BindTexture)                             \
   X(PFNGLACTIVETEXTUREPROC, ActiveTexture)                         \
   X(SaGlTexImage2DFn, TexImage2D)                               \
+  X(SaGlColorMaskFn, ColorMask)                                 \
   X(SaGlTexParameteriFn, TexParameteri)
 
 struct Gl {

@@ -77,6 +77,14 @@ class Renderer {
   void set_slice(const SlicePlane& plane) { slice_ = plane; }
   void set_depth_test(bool on);
   void draw_slice(const Camera& camera, const SlicePlane& plane);
+  // The CT on the slice plane: an RGBA8 image (rows from corners[0]->corners[3], columns from
+  // corners[0]->corners[1]; alpha 0 outside the CT) drawn as a textured quad at those world
+  // corners. While set and the slice is active, the organ sections (the inside seen through the
+  // cut) tint the CT with the organ's colour and everything else on the plane shows the CT.
+  void set_slice_image(const std::vector<uint8_t>& rgba, int w, int h, const std::array<Eigen::Vector3f, 4>& corners);
+  void clear_slice_image() { slice_image_ = false; }
+  bool ct_on_plane() const { return slice_image_ && slice_.active(); }
+  void draw_slice_image(const Camera& camera);
   // Dear ImGui draw lists (panels, labels), drawn last, with our own GL 3.3 code: Debian ships
   // imgui_impl_opengl3 only as an example source whose loader cannot see OSMesa.
   void draw_imgui(const ImDrawData* data);
@@ -99,6 +107,8 @@ class Renderer {
   uint32_t imgui_vao_ = 0, imgui_vbo_ = 0, imgui_ebo_ = 0, font_texture_ = 0;
   Eigen::Vector3f lo_{-100, -100, -100}, hi_{100, 100, 100};
   SlicePlane slice_;
+  uint32_t ct_program_ = 0, ct_vao_ = 0, ct_vbo_ = 0, ct_texture_ = 0;
+  bool slice_image_ = false;
   int width_ = 0, height_ = 0;
 };
 

@@ -12,6 +12,7 @@
 #include "softatlas/app/picking.hpp"
 #include "softatlas/app/renderer.hpp"
 #include "softatlas/app/scene.hpp"
+#include "softatlas/io/ct_image.hpp"
 
 struct ImGuiContext;
 
@@ -68,6 +69,8 @@ class Viewer {
   GlContext& context() { return context_; }
   Renderer& renderer() { return *renderer_; }
   ImGuiContext* imgui() { return imgui_; }
+  // The organ set's CT (atlas.yaml `ct:`), read once; null when the set records none.
+  const io::CtImage* ct() const { return ct_.get(); }
 
  private:
   void begin();
@@ -80,6 +83,9 @@ class Viewer {
   std::vector<Eigen::Vector3f> centroids_;
   ImGuiContext* imgui_ = nullptr;
   bool glfw_backend_ = false;
+  void update_slice_image();  // the CT resampled on `slice` (when it moved)
+  std::shared_ptr<const io::CtImage> ct_;
+  SlicePlane ct_slice_;        // the plane the current slice image was made for
 };
 
 }  // namespace softatlas::app

@@ -71,6 +71,15 @@ struct Connection {
   double stiffness = 0.0;             // N/m
 };
 
+// The CT the set was built from (`ct:` in atlas.yaml; absent for sets built from meshes): a NIfTI
+// file in the set (SET/ct.nii.gz, int16 HU, cropped to the organs) and the display window the
+// viewer maps to grey levels on the slice plane (level +- width/2 -> black..white).
+struct CtRecord {
+  std::string file = "ct.nii.gz";     // relative to the set folder
+  double window_width_hu = 400.0;     // soft tissue
+  double window_level_hu = 40.0;
+};
+
 struct OrganSet {
   std::string folder;                 // where it was read from (empty when built in memory)
   std::string units = "mm";
@@ -80,6 +89,10 @@ struct OrganSet {
   std::string connections_file = "connections.csv";
   // Free-form provenance written as a YAML map of strings (input hashes, parameters, version).
   std::map<std::string, std::string> provenance;
+  std::optional<CtRecord> ct;         // the set's CT, if it records one
+
+  // folder / ct->file, or "" when the set records no CT.
+  std::string ct_path() const;
 
   const OrganEntry* find(const std::string& name) const;
   int index_of(const std::string& name) const;  // -1 if absent
@@ -93,7 +106,8 @@ OrganSet read_organ_set(const std::string& folder);
 // Writes an organ set into `folder` atomically: everything goes into a temporary sibling folder
 // which is renamed at the end. Fails (InputError) if `folder` exists unless overwrite is true.
 // Meshes are written as organs/NAME.ply; `extra_files` (relative path -> content, e.g.
-// quality.json) are written too.
+// quality.json) are written too. A set with `ct` needs its CT file among extra_files (the
+// pipeline's encoded bytes) or in set.folder (a set read and written again keeps its CT).
 void write_organ_set(const OrganSet& set, const std::string& folder,
                      const std::map<std::string, std::string>& extra_files = {},
                      bool overwrite = false);
