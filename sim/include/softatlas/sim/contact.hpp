@@ -12,7 +12,8 @@
 //               displacement becomes velocity (dx / h). On solid organs the surface vertices'
 //               displacements move the lattice nodes (weighted by the embedding), and the
 //               surface then follows the lattice.
-//   exemptions  a vertex inside another organ at rest (the organ sets' surfaces touch and overlap
+//   exemptions  two organs overlapping deeper than 2 mm at rest (a vessel inside the liver) get no
+//               contact between them; a vertex inside another organ at rest (the organ sets' surfaces touch and overlap
 //               by a voxel or two; a vessel runs inside the liver) is never projected; a vertex
 //               found deeper than depth_m (it was pushed through by the tool faster than contact
 //               could hold it, or it tunnelled in one step) is let go until it is outside again,
@@ -38,6 +39,7 @@ struct ContactModel {
   std::vector<int8_t> organ_sign;    // +1 when the organ's faces are outward, -1 inward
   std::vector<uint8_t> vert_movable; // 0: fixed vertex or rigid organ
   std::vector<uint8_t> rest_inside;  // per vertex: inside another organ at rest (never projected)
+  std::vector<uint8_t> joined;       // #organs^2: overlapping deeper than 2 mm at rest, no contact
 };
 
 // Per step scratch (sized by make_work; empty when contact is off).
