@@ -47,7 +47,7 @@ constexpr const char* kUsage = R"(usage: softatlas <command> [options]
   lesson run LESSON --device SCRIPT --out DIR
   sim SET|MESH... --explain             print the compiled physics plan
   bench sim --mesh A.obj [B.obj ...] --model tmsm|cmsm|nmsm --integrator I --steps N --json
-  bench restore SET --organ NAME [--pull-mm 30] [--model M] [--no-contact] --json
+  bench restore SET --organ NAME [--pull-mm 30] [--model M] [--contact] --json
   bench contact SET [--push-mm 20] [--organ NAME] [--compare] --json
   bench pipeline|render|haptic ... --json
   bench segment [--cases ...] [--variants ...] --json   seeded segmentation, fixed random seed draws

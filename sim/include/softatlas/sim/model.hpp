@@ -121,7 +121,9 @@ struct SceneDesc {
   double sleep_speed_m_s = 1e-6;    // below this speed for sleep_steps steps, an organ sleeps
   int sleep_steps = 200;
   int threads = 1;                  // worker threads; organs are stepped in parallel
-  bool contact = true;              // organs do not pass through each other (sim/contact.hpp)
+  // Organs do not pass through each other (sim/contact.hpp). Off by default: an organ pushed
+  // through another is sometimes caught on the far side (docs/physics.md "Contact").
+  bool contact = false;
 };
 
 // One compiled organ: contiguous ranges in the global arrays.
