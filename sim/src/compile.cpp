@@ -644,8 +644,8 @@ Model compile(const SceneDesc& scene) {
          std::to_string(static_cast<int>(std::lround(m.contact.depth_m * 1e3))) +
          " mm projected out of their nearest face (hash grid, " + std::to_string(m.contact.table_size) +
          " buckets); " + std::to_string(inside) + " vertices inside another organ at rest are exempt");
-  } else {
-    m.dropped.push_back(scene.contact ? "contact: fewer than two organs" : "contact: off (SceneDesc::contact)");
+  } else if (scene.contact) {
+    m.dropped.push_back("contact: fewer than two organs");
   }
   for (const OrganRange& r : m.organs) {
     std::string s = "organ '" + r.name + "' [" + to_string(r.model) + "]: " +
