@@ -18,6 +18,9 @@ constexpr double kLetGoDepth = 2.0;  // detection radius in depths (deeper verti
 // inside the liver, a vein in its groove (contact between them inverted the vein, 21 mm residual
 // and -292 % volume in bench restore on the CT abdomen set); a voxel or two of overlap is normal.
 constexpr double kJoinedDepth_m = 2e-3;
+// Speed at which a tool hold that contact stopped at another organ's surface returns toward the
+// device when contact lets it (follow_contact).
+constexpr double kHoldReturn_m_s = 0.1;
 
 struct Positions {
   const double* x;
@@ -230,11 +233,8 @@ bool in_partner_box(const Model& m, const ContactWork& cw, int32_t self, const d
   return false;
 }
 
-// Ray parity: whether p is inside organ o's closed surface (a skewed ray, so that it meets no edge
-// of a regular mesh exactly). For the measurement and the rest exemptions, where the nearest
-// face's side can be wrong far from the surface (a point in a curved organ's concavity).
-bool inside_by_parity(const Model& m, const Positions& P, const double p[3], int32_t o) {
-  const double dir[3] = {1.0, 0.0013717, 0.0021523};
+// Crossings of the ray p + t dir, 0 < t <= t_max, with organ o's faces (Moller-Trumbore).
+int crossings(const Model& m, const Positions& P, const double p[3], const double dir[3], double t_max, int32_t o) {
   int hits = 0;
   for (int32_t f = m.organs[o].face_begin; f < m.organs[o].face_end; ++f) {
     double a[3], b[3], c[3];
@@ -249,9 +249,42 @@ bool inside_by_parity(const Model& m, const Positions& P, const double p[3], int
     const double q[3] = {t[1] * e1[2] - t[2] * e1[1], t[2] * e1[0] - t[0] * e1[2], t[0] * e1[1] - t[1] * e1[0]};
     const double v = (dir[0] * q[0] + dir[1] * q[1] + dir[2] * q[2]) / det;
     if (v < 0 || u + v > 1) continue;
-    if ((e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) / det > 0) ++hits;
+    const double tt = (e2[0] * q[0] + e2[1] * q[1] + e2[2] * q[2]) / det;
+    if (tt > 0 && tt <= t_max) ++hits;
   }
-  return hits % 2 == 1;
+  return hits;
+}
+
+// Ray parity: whether p is inside organ o's closed surface (a skewed ray, so that it meets no edge
+// of a regular mesh exactly). For the measurement and the rest exemptions, where the nearest
+// face's side can be wrong far from the surface (a point in a curved organ's concavity).
+bool inside_by_parity(const Model& m, const Positions& P, const double p[3], int32_t o) {
+  const double dir[3] = {1.0, 0.0013717, 0.0021523};
+  return crossings(m, P, p, dir, INFINITY, o) % 2 == 1;
+}
+
+// Whether the straight way from vertex v (of organ `self`) back to its rest position crosses a
+// partner organ: then v is on the far side of it (pushed through). The rest position as compiled:
+// the organs of an atlas are anchored (the organ's mean displacement added to it put the way home
+// of a sphere pushed as a whole inside its neighbour).
+bool way_home_blocked(const Model& m, const Positions& P, const ContactWork& cw, int32_t v, int32_t self) {
+  double p[3];
+  load(P, v, p);
+  const double home[3] = {m.vert_rest_x[v], m.vert_rest_y[v], m.vert_rest_z[v]};
+  const double dir[3] = {home[0] - p[0], home[1] - p[1], home[2] - p[2]};
+  const size_t no = m.organs.size();
+  for (size_t o = 0; o < no; ++o) {
+    if (!cw.pair[static_cast<size_t>(self) * no + o]) continue;
+    const double* b = &cw.box[6 * o];
+    bool overlap = true;  // the segment's box against the partner's
+    for (int k = 0; k < 3; ++k) overlap = overlap && std::min(p[k], home[k]) <= b[3 + k] && std::max(p[k], home[k]) >= b[k];
+    if (overlap && crossings(m, P, p, dir, 1.0, static_cast<int32_t>(o)) > 0) return true;
+  }
+  return false;
+}
+
+bool held_now(const State& s, int32_t v) {
+  return s.tool.mode == ToolMode::attach && std::binary_search(s.tool.verts.begin(), s.tool.verts.end(), v);
 }
 
 // Nearest partner face at any distance (the search radius doubles from the contact depth up to the
@@ -331,6 +364,7 @@ ContactWork make_contact_work(const Model& m) {
   cw.saved.assign(3 * static_cast<size_t>(m.nvert), 0.0);
   cw.weight = m.contact.vert_movable;
   cw.touched.assign(m.nvert, 0);
+  cw.held_before.assign(3 * static_cast<size_t>(m.nvert), 0.0);
   size_t nodes = 0;
   for (const SolidBody& b : m.solids) nodes = std::max(nodes, static_cast<size_t>(b.node_begin + b.nnode));
   cw.node_acc.assign(4 * nodes, 0.0);
@@ -338,6 +372,34 @@ ContactWork make_contact_work(const Model& m) {
 }
 
 namespace {
+
+// The tool's held vertices as a proxy that contact stops at another organ's surface (the god
+// object of haptic rendering, Zilles and Salisbury 1995): the mean of what contact did to the
+// held vertices this step stays in their targets (ToolState::contact_shift, one vector: the held
+// patch moves as one, like a probe's tip), and the shift returns toward the device at
+// kHoldReturn_m_s when contact does not push. Without it the hold drives the vertices back into
+// the organ every step, the lattice carries the vertices around them in, deeper than contact
+// projects: the pushed pancreas ended 11.7 mm inside the kidney. One shift per held vertex made
+// targets that the lattice could not meet: a kidney vertex jumped 5 mm in one step.
+void follow_contact(const Model& m, State& s, const ContactWork& cw, bool projected) {
+  ToolState& t = s.tool;
+  if (t.mode != ToolMode::attach || t.verts.empty()) return;
+  double d[3] = {0, 0, 0};
+  if (projected)
+    for (int32_t v : t.verts) {
+      d[0] += s.x[v] - cw.held_before[3 * v], d[1] += s.y[v] - cw.held_before[3 * v + 1];
+      d[2] += s.z[v] - cw.held_before[3 * v + 2];
+    }
+  double* c = t.contact_shift.data();
+  if (d[0] != 0 || d[1] != 0 || d[2] != 0) {
+    for (int k = 0; k < 3; ++k) c[k] += d[k] / static_cast<double>(t.verts.size());
+    return;
+  }
+  const double back = kHoldReturn_m_s * m.dt_s;
+  const double len = std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+  const double keep = len > back ? 1.0 - back / len : 0.0;
+  for (int k = 0; k < 3; ++k) c[k] *= keep;
+}
 
 // One round of the projection over the step's contacts; returns how many were violated.
 int project_round(const Model& m, State& s, Work& w, int32_t nc) {
@@ -430,8 +492,15 @@ int contact_pass(const Model& m, State& s, Work& w) {
   ContactWork& cw = w.contact;
   const ContactModel& c = m.contact;
   const Positions P{s.x.data(), s.y.data(), s.z.data()};
-  if (find_pairs(m, &s, P, c.depth_m, cw) == 0) return 0;
+  if (find_pairs(m, &s, P, c.depth_m, cw) == 0) {
+    follow_contact(m, s, cw, false);
+    return 0;
+  }
   build_grid(m, P, cw);
+  if (s.tool.mode == ToolMode::attach)
+    for (int32_t v : s.tool.verts) {
+      cw.held_before[3 * v] = s.x[v], cw.held_before[3 * v + 1] = s.y[v], cw.held_before[3 * v + 2] = s.z[v];
+    }
   // Detection: each vertex of a paired organ against its partners' faces.
   int32_t nc = 0;
   const size_t no = m.organs.size();
@@ -442,31 +511,55 @@ int contact_pass(const Model& m, State& s, Work& w) {
       double p[3];
       load(P, v, p);
       if (!in_partner_box(m, cw, static_cast<int32_t>(o), p, c.depth_m)) {
-        s.contact_let_go[v] = 0;
+        // clear of every partner box; one let go stays so while it is beyond a partner
+        if (s.contact_let_go[v]) s.contact_let_go[v] = way_home_blocked(m, P, cw, v, static_cast<int32_t>(o));
         continue;
       }
       // faces within twice the depth: a vertex between depth_m and 2 depth_m inside is let go
       const Nearest n = nearest_face(m, P, cw, p, static_cast<int32_t>(o), kLetGoDepth * c.depth_m);
-      if (n.face < 0) continue;                 // far outside, or deeper: unchanged
-      if (n.signed_dist >= 0) { s.contact_let_go[v] = 0; continue; }  // outside, near a face
-      if (s.contact_let_go[v]) continue;        // came through: left to the organ's elasticity
-      if (-n.signed_dist > c.depth_m * 0.999) { s.contact_let_go[v] = 1; continue; }
+      if (n.face < 0) continue;  // far outside, or deeper: unchanged
+      const bool held = held_now(s, v);
+      if (n.signed_dist >= 0) {  // outside, near a face
+        // A vertex let go stays let go while it is on a partner's far side (its straight way home
+        // crosses the partner): projecting it there trapped a sphere on its neighbour's far side,
+        // 29 mm from rest, when it was cleared on the first step outside.
+        if (s.contact_let_go[v]) s.contact_let_go[v] = way_home_blocked(m, P, cw, v, static_cast<int32_t>(o));
+        continue;
+      }
+      // Let go: pushed in deeper than contact holds in a step (the nearest face may be on the
+      // partner's far side); the organ's elasticity brings it back. Never a held vertex: the hold
+      // stops at the partner instead (follow_contact).
+      if (s.contact_let_go[v] && !held) continue;
+      if (-n.signed_dist > c.depth_m * 0.999 && !held) {
+        s.contact_let_go[v] = 1;
+        continue;
+      }
+      s.contact_let_go[v] = 0;
       cw.c_vert[nc] = v, cw.c_face[nc] = n.face;
       for (int k = 0; k < 3; ++k) cw.c_bary[3 * nc + k] = n.bary[k], cw.c_normal[3 * nc + k] = n.normal[k];
       ++nc;
     }
   }
-  if (nc == 0) return 0;
-  // Tool-held vertices do not move for contact: the organ they press moves instead (and a held
-  // vertex gives way when what it presses cannot move, see project_round).
-  if (s.tool.mode == ToolMode::attach)
+  if (nc == 0) {
+    follow_contact(m, s, cw, false);
+    return 0;
+  }
+  // Tool-held vertices do not move for contact in the first rounds: the organ they press moves
+  // instead (a held vertex gives way when what it presses cannot move, see project_round). In the
+  // last round they share what is left, so that a hold against an organ that resists (anchored,
+  // smoothed by its lattice) does not end the step inside it.
+  const bool attached = s.tool.mode == ToolMode::attach;
+  if (attached)
     for (int32_t v : s.tool.verts) cw.weight[v] = 0;
   // Rounds: Gauss-Seidel sweeps on the surface positions, then the solid organs' lattices take
   // their surface's displacement (which smooths it: the next round projects what is left).
   for (int round = 0; round < kContactRounds; ++round) {
+    if (attached && round == kContactRounds - 1)
+      for (int32_t v : s.tool.verts) cw.weight[v] = c.vert_movable[v];
     if (project_round(m, s, w, nc) == 0) break;
   }
-  if (s.tool.mode == ToolMode::attach)
+  follow_contact(m, s, cw, true);
+  if (attached)
     for (int32_t v : s.tool.verts) cw.weight[v] = c.vert_movable[v];
   return nc;
 }

@@ -66,7 +66,8 @@ void attach_targets(const Model& m, const State& s, Work& w, double frac) {
   const double p1 = std::min(1.0, static_cast<double>(t.attach_progress + 1) / t.attach_iterations);
   const double p = p0 + (p1 - p0) * frac;
   for (size_t q = 0; q < t.verts.size(); ++q)
-    for (int c = 0; c < 3; ++c) w.tool_target[3 * q + c] = t.anchor[3 * q + c] + p * t.offset_m[c];
+    for (int c = 0; c < 3; ++c)
+      w.tool_target[3 * q + c] = t.anchor[3 * q + c] + p * t.offset_m[c] + t.contact_shift[c];
 }
 
 // Held vertices get the velocity that carries them to their target over h; with
@@ -131,6 +132,7 @@ void attach(const Model& m, State& s, const std::vector<int32_t>& verts,
   s.tool.attach_iterations = std::max(1, iterations);
   s.tool.attach_progress = 0;
   s.tool.anchor.resize(3 * s.tool.verts.size());
+  s.tool.contact_shift = {0, 0, 0};
   for (size_t q = 0; q < s.tool.verts.size(); ++q) {
     const int32_t v = s.tool.verts[q];
     s.tool.anchor[3 * q] = s.x[v], s.tool.anchor[3 * q + 1] = s.y[v], s.tool.anchor[3 * q + 2] = s.z[v];

@@ -8,17 +8,19 @@
 //   response    position projection after the step's integration (position-based dynamics,
 //               Mueller et al. 2007, the non-penetration constraint n . (p - sum_i b_i x_i) >= 0
 //               of a vertex p and its face's closest point): a few Gauss-Seidel sweeps, movable
-//               vertices weighted equally, fixed, rigid and tool-held vertices immovable; the
+//               vertices weighted equally, fixed and rigid vertices immovable, tool-held ones
+//               until the last round (the tool's hold is a proxy that contact stops, follow_contact); the
 //               displacement becomes velocity (dx / h). On solid organs the surface vertices'
 //               displacements move the lattice nodes (weighted by the embedding), and the
 //               surface then follows the lattice.
 //   exemptions  two organs overlapping deeper than 2 mm at rest (a vessel inside the liver) get no
 //               contact between them; a vertex inside another organ at rest (the organ sets' surfaces touch and overlap
 //               by a voxel or two; a vessel runs inside the liver) is never projected; a vertex
-//               found deeper than depth_m (it was pushed through by the tool faster than contact
-//               could hold it, or it tunnelled in one step) is let go until it is outside again,
-//               so that the organ's elasticity brings it back rather than contact trapping it on
-//               the wrong side.
+//               found deeper than depth_m (pushed through faster than contact could hold it, or
+//               tunnelled in one step) is let go until it is outside again on its own side (the
+//               straight way back to its rest position crosses no partner), so that the organ's
+//               elasticity brings it back rather than contact trapping it on the far side.
+//               Tool-held vertices are never let go: they give way in the last projection round.
 // Everything the step uses is sized by compile() and make_work(); contact_pass() does not allocate.
 #pragma once
 
@@ -58,6 +60,7 @@ struct ContactWork {
   std::vector<double> saved;         // #verts * 3 positions before the projection
   std::vector<uint8_t> weight;       // #verts: movable this step (tool-held vertices are not)
   std::vector<uint8_t> touched;      // #verts: moved by the projection
+  std::vector<double> held_before;   // #verts * 3: held vertices' positions before the projection
   std::vector<double> node_acc;      // solid lattice nodes: #nodes * 4 (dx dy dz, weight)
   double face_radius = 0.0;          // largest centroid-to-corner distance in the grid this step
 };

@@ -121,8 +121,8 @@ struct SceneDesc {
   double sleep_speed_m_s = 1e-6;    // below this speed for sleep_steps steps, an organ sleeps
   int sleep_steps = 200;
   int threads = 1;                  // worker threads; organs are stepped in parallel
-  // Organs do not pass through each other (sim/contact.hpp). Off by default: an organ pushed
-  // through another is sometimes caught on the far side (docs/physics.md "Contact").
+  // Organs do not pass through each other (sim/contact.hpp). Off by default for now: it costs
+  // 1.7x the step on data/atlas and 3x on a CT abdomen set (docs/physics.md "Contact").
   bool contact = false;
 };
 
@@ -225,6 +225,8 @@ struct ToolState {
   int attach_iterations = 30;            // attach mode: reach the target over this many steps
   int attach_progress = 0;
   std::vector<double> anchor;            // attach: start positions of the picked verts (#*3)
+  std::array<double, 3> contact_shift{0, 0, 0};  // attach: where contact holds the picked vertices
+                                         // off their targets (a proxy stopped at another organ, contact.cpp)
   // outputs of the last step
   std::array<double, 3> reaction_N{0, 0, 0};  // force the organ exerts on the tool
   bool clamped = false;                  // the guard limited the requested force
@@ -242,7 +244,7 @@ struct State {
   int64_t guard_actions = 0;             // sub-stepped, implicit, clamped or restored steps
   int64_t guard_restores = 0;
   std::vector<double> solid_x, solid_v;  // solid organs' lattice nodes (#nodes*3), sim/solid.hpp
-  std::vector<uint8_t> contact_let_go;   // per vertex: pushed through another organ, not projected
+  std::vector<uint8_t> contact_let_go;   // per vertex: pushed in deep, left to elasticity (contact.hpp)
 };
 
 class WorkerPool;  // sim/src/workers.hpp
