@@ -193,12 +193,12 @@ struct RestoreArgs {
   std::string set_dir, organ, model_name, integrator_name;
   double pull_mm = 30.0, dt = -1.0, damping_ratio = -1.0, flexion_stiffness = -1.0;
   int threads = 1;
-  bool json_out = false, no_sleep = false, contact = false;
+  bool json_out = false, no_sleep = false, no_contact = false;
 };
 
 int bench_restore(const RestoreArgs& a) {
   const auto& [set_dir, organ, model_name, integrator_name, pull_mm, dt, damping_ratio, flexion_stiffness, threads,
-               json_out, no_sleep, contact] = a;
+               json_out, no_sleep, no_contact] = a;
 
   io::SceneOptions so;
   so.model_override = model_name;
@@ -209,7 +209,7 @@ int bench_restore(const RestoreArgs& a) {
   sim::SceneDesc scene = io::scene_from_organ_set(io::read_organ_set(set_dir), so);
   scene.threads = threads;
   if (no_sleep) scene.allow_sleep = false;
-  scene.contact = contact;
+  if (no_contact) scene.contact = false;
   if (damping_ratio >= 0)
     for (sim::OrganDesc& o : scene.organs) o.material.damping_ratio = damping_ratio;
   if (flexion_stiffness >= 0)
@@ -261,7 +261,7 @@ void add_bench_restore(CLI::App& bench, cli::Status* status) {
   app->add_option("--flexion-stiffness", a->flexion_stiffness, "flexion model: dihedral spring stiffness (N m / rad)")
       ->check(CLI::Range(0.0, 1e3));
   app->add_flag("--no-sleep", a->no_sleep, "resting organs are not put to sleep");
-  app->add_flag("--contact", a->contact, "contact between organs (sim/contact.hpp; off by default)");
+  app->add_flag("--no-contact", a->no_contact, "without contact between organs (sim/contact.hpp; on by default)");
   app->add_flag("--json", a->json_out, "print one JSON object");
   cli::on_run(app, status, [a] { return bench_restore(*a); });
 }

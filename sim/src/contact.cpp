@@ -365,6 +365,12 @@ ContactWork make_contact_work(const Model& m) {
   cw.weight = m.contact.vert_movable;
   cw.touched.assign(m.nvert, 0);
   cw.held_before.assign(3 * static_cast<size_t>(m.nvert), 0.0);
+  cw.clear.assign(m.nvert, 0.0), cw.moved.assign(m.nvert, 0.0);
+  cw.last_x.resize(3 * static_cast<size_t>(m.nvert));
+  for (int32_t v = 0; v < m.nvert; ++v)
+    cw.last_x[3 * v] = m.vert_rest_x[v], cw.last_x[3 * v + 1] = m.vert_rest_y[v], cw.last_x[3 * v + 2] = m.vert_rest_z[v];
+  cw.organ_moved.assign(no, 0.0);
+  cw.pair_before.assign(no * no, 0);
   size_t nodes = 0;
   for (const SolidBody& b : m.solids) nodes = std::max(nodes, static_cast<size_t>(b.node_begin + b.nnode));
   cw.node_acc.assign(4 * nodes, 0.0);
@@ -501,13 +507,39 @@ int contact_pass(const Model& m, State& s, Work& w) {
     for (int32_t v : s.tool.verts) {
       cw.held_before[3 * v] = s.x[v], cw.held_before[3 * v + 1] = s.y[v], cw.held_before[3 * v + 2] = s.z[v];
     }
+  // What moved since the last detection: each vertex (into cw.moved), and each organ's most.
+  // A vertex whose last distance to its partners' faces (cw.clear) still exceeds what it and
+  // they moved since cannot touch them: it is not looked up (conservative advancement).
+  const size_t no = m.organs.size();
+  if (!std::equal(cw.pair.begin(), cw.pair.end(), cw.pair_before.begin())) {  // new partners
+    std::fill(cw.clear.begin(), cw.clear.end(), 0.0);
+    std::copy(cw.pair.begin(), cw.pair.end(), cw.pair_before.begin());
+  }
+  for (size_t o = 0; o < no; ++o) {
+    cw.organ_moved[o] = 0.0;
+    if (!cw.organ_paired[o]) continue;
+    double most = 0.0;
+    for (int32_t v = m.organs[o].vert_begin; v < m.organs[o].vert_end; ++v) {
+      double* q = &cw.last_x[3 * static_cast<size_t>(v)];
+      const double dx = s.x[v] - q[0], dy = s.y[v] - q[1], dz = s.z[v] - q[2];
+      cw.moved[v] = std::sqrt(dx * dx + dy * dy + dz * dz);
+      most = std::max(most, cw.moved[v]);
+      q[0] = s.x[v], q[1] = s.y[v], q[2] = s.z[v];
+    }
+    cw.organ_moved[o] = most;
+  }
   // Detection: each vertex of a paired organ against its partners' faces.
   int32_t nc = 0;
-  const size_t no = m.organs.size();
   for (size_t o = 0; o < no; ++o) {
     if (!cw.organ_paired[o]) continue;
+    double partners_moved = 0.0;
+    for (size_t b = 0; b < no; ++b)
+      if (cw.pair[o * no + b]) partners_moved = std::max(partners_moved, cw.organ_moved[b]);
     for (int32_t v = m.organs[o].vert_begin; v < m.organs[o].vert_end; ++v) {
       if (c.rest_inside[v]) continue;
+      cw.clear[v] -= cw.moved[v] + partners_moved;
+      if (cw.clear[v] > 0 && !s.contact_let_go[v]) continue;
+      cw.clear[v] = 0.0;
       double p[3];
       load(P, v, p);
       if (!in_partner_box(m, cw, static_cast<int32_t>(o), p, c.depth_m)) {
@@ -516,7 +548,11 @@ int contact_pass(const Model& m, State& s, Work& w) {
         continue;
       }
       // faces within twice the depth: a vertex between depth_m and 2 depth_m inside is let go
-      const Nearest n = nearest_face(m, P, cw, p, static_cast<int32_t>(o), kLetGoDepth * c.depth_m);
+      const double radius = kLetGoDepth * c.depth_m;
+      const Nearest n = nearest_face(m, P, cw, p, static_cast<int32_t>(o), radius);
+      // a vertex behind a face is looked up again next step whatever moved (projection can leave
+      // a residual: skipping it kept the pancreas 9 mm inside the kidney)
+      cw.clear[v] = n.face < 0 ? radius : n.signed_dist >= 0 ? std::sqrt(n.dist2) : 0.0;
       if (n.face < 0) continue;  // far outside, or deeper: unchanged
       const bool held = held_now(s, v);
       if (n.signed_dist >= 0) {  // outside, near a face

@@ -4,7 +4,9 @@
 //               form pairs; their faces go into one spatial hash grid by centroid; each vertex of
 //               a paired organ inside a partner's box finds its nearest partner face. It
 //               penetrates when it lies behind that face (the face normal, outward) by at most
-//               ContactModel::depth_m.
+//               ContactModel::depth_m. A vertex is looked up again only when what it and its
+//               partners moved since its last lookup may have closed the distance found then
+//               (conservative advancement); a vertex behind a face, every step.
 //   response    position projection after the step's integration (position-based dynamics,
 //               Mueller et al. 2007, the non-penetration constraint n . (p - sum_i b_i x_i) >= 0
 //               of a vertex p and its face's closest point): a few Gauss-Seidel sweeps, movable
@@ -61,6 +63,13 @@ struct ContactWork {
   std::vector<uint8_t> weight;       // #verts: movable this step (tool-held vertices are not)
   std::vector<uint8_t> touched;      // #verts: moved by the projection
   std::vector<double> held_before;   // #verts * 3: held vertices' positions before the projection
+  // Conservative advancement (contact_pass): a vertex is looked up only when what it and its
+  // partners moved since its last lookup may have closed the distance found then.
+  std::vector<double> clear;         // #verts: distance to partner faces left, as of this step
+  std::vector<double> last_x;        // #verts * 3: positions at the last detection
+  std::vector<double> moved;         // #verts: moved since the last detection
+  std::vector<double> organ_moved;   // #organs: the most any of its vertices moved
+  std::vector<uint8_t> pair_before;  // #organs^2: the pairs the distances were found against
   std::vector<double> node_acc;      // solid lattice nodes: #nodes * 4 (dx dy dz, weight)
   double face_radius = 0.0;          // largest centroid-to-corner distance in the grid this step
 };

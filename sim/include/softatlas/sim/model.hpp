@@ -121,9 +121,7 @@ struct SceneDesc {
   double sleep_speed_m_s = 1e-6;    // below this speed for sleep_steps steps, an organ sleeps
   int sleep_steps = 200;
   int threads = 1;                  // worker threads; organs are stepped in parallel
-  // Organs do not pass through each other (sim/contact.hpp). Off by default for now: it costs
-  // 1.7x the step on data/atlas and 3x on a CT abdomen set (docs/physics.md "Contact").
-  bool contact = false;
+  bool contact = true;              // organs do not pass through each other (sim/contact.hpp)
 };
 
 // One compiled organ: contiguous ranges in the global arrays.
