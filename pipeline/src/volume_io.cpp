@@ -867,6 +867,10 @@ void check_dicom_lengths(const fs::path& f) {
         continue;
       }
       if (elem == 0xE00D || elem == 0xE0DD) {
+        // a delimiter has length 0 (GDCM allocated 4 GB for one that claimed 0xFF26FFFF)
+        if (len != 0)
+          throw InputError(where, "DICOM delimiter at byte " + std::to_string(pos - 8) + " with length " +
+                                      std::to_string(len) + " (expected 0)");
         if (depth > 0) --depth;
         continue;
       }
@@ -922,6 +926,7 @@ void check_dicom_lengths(const fs::path& f) {
                                    {0x0028, 0x0103, "US", 1}, {0x0028, 0x0030, "DS", 2}, {0x0028, 0x1052, "DS", 1},
                                    {0x0028, 0x1053, "DS", 1}, {0x0020, 0x0032, "DS", 3}, {0x0020, 0x0037, "DS", 6},
                                    {0x0018, 0x0050, "DS", 1}, {0x0018, 0x0088, "DS", 1}, {0x0028, 0x0008, "IS", 1},
+                                   {0x0028, 0x0006, "US", 1}, {0x0028, 0x0034, "IS", 2},
                                    {0x0028, 0x0009, "AT", 0}};  // FrameIncrementPointer: tags, any count
     if (depth == 0)
       for (const Known& k : kKnown) {
