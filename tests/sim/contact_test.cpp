@@ -42,12 +42,18 @@ sim::SceneDesc two_spheres(double gap_m, bool contact) {
   return s;
 }
 
+// The left sphere's vertices within 10 mm of its extreme point along dir, as global indices.
+std::vector<int32_t> left_patch(const sim::SceneDesc& scene, const sim::Model& m, const std::array<double, 3>& dir) {
+  std::vector<int32_t> out;
+  for (int32_t v : solid_test::region(scene.organs[0], dir, 0.01)) out.push_back(sim::global_vertex(m, 0, v));
+  return out;
+}
+
 Pushed push(const sim::SceneDesc& scene, const sim::Model& measure, double push_m, int steps = 125) {
   const sim::Model m = sim::compile(scene);
   sim::State s = sim::make_state(m);
   sim::Work w = sim::make_work(m);
-  std::vector<int32_t> held;
-  for (int32_t v : solid_test::region(scene.organs[0], {-1, 0, 0}, 0.01)) held.push_back(sim::global_vertex(m, 0, v));
+  const std::vector<int32_t> held = left_patch(scene, m, {-1, 0, 0});
   sim::attach(m, s, held, {push_m, 0, 0}, 60);
   Pushed out;
   for (int i = 0; i < steps; ++i) {
@@ -110,8 +116,7 @@ TEST(Contact, HeldPatchDrivenDeepStopsAtTheNeighbour) {
   const sim::Model m = sim::compile(scene);
   sim::State s = sim::make_state(m);
   sim::Work w = sim::make_work(m);
-  std::vector<int32_t> held;
-  for (int32_t v : solid_test::region(scene.organs[0], {-1, 0, 0}, 0.01)) held.push_back(sim::global_vertex(m, 0, v));
+  const std::vector<int32_t> held = left_patch(scene, m, {-1, 0, 0});
   sim::attach(m, s, held, {0.025, 0, 0}, 60);
   double deepest = 0.0;
   for (int i = 0; i < 120; ++i) {
@@ -136,8 +141,7 @@ TEST(Contact, VertexPushedThroughIsLetGoAndComesBack) {
   const sim::Model m = sim::compile(scene);
   sim::State s = sim::make_state(m);
   sim::Work w = sim::make_work(m);
-  std::vector<int32_t> pushed;
-  for (int32_t v : solid_test::region(scene.organs[0], {1, 0, 0}, 0.01)) pushed.push_back(sim::global_vertex(m, 0, v));
+  const std::vector<int32_t> pushed = left_patch(scene, m, {1, 0, 0});
   sim::pull_force(m, s, pushed, {5.0, 0, 0});
   int let_go = 0;
   double deepest = 0.0;
