@@ -486,6 +486,7 @@ int project_round(const Model& m, State& s, Work& w, int32_t nc) {
         s.solid_x[3 * g + k] += d, s.solid_v[3 * g + k] += d * inv_h;
       }
     }
+    solid_restore_volume(m, body, w.solid[si], s, cw.node_acc.data());
     solid_surface_update(m, body, s);
   }
   return violated;

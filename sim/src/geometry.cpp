@@ -96,6 +96,20 @@ double enclosed_volume(const double* x, const double* y, const double* z, const 
   return v6 / 6.0;
 }
 
+void add_volume_gradient(const double* x, const double* y, const double* z, const int32_t* faces,
+                         size_t face_begin, size_t face_end, int32_t offset, double* gx, double* gy,
+                         double* gz) {
+  auto add = [&](int32_t v, int32_t p, int32_t q) {  // x_p x x_q / 6
+    gx[v] += (y[p] * z[q] - z[p] * y[q]) / 6.0;
+    gy[v] += (z[p] * x[q] - x[p] * z[q]) / 6.0;
+    gz[v] += (x[p] * y[q] - y[p] * x[q]) / 6.0;
+  };
+  for (size_t f = face_begin; f < face_end; ++f) {
+    const int32_t i = faces[3 * f] - offset, j = faces[3 * f + 1] - offset, k = faces[3 * f + 2] - offset;
+    add(i, j, k), add(j, k, i), add(k, i, j);
+  }
+}
+
 double enclosed_volume(const std::vector<double>& V, const std::vector<int32_t>& F) {
   // Relative to the first vertex to keep the sum well conditioned far from the origin.
   const size_t n = V.size() / 3;

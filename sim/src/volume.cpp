@@ -19,15 +19,8 @@ void volume_pass(const Model& m, const OrganRange& r, State& s, Work& w, double 
   const double* Z = s.z.data();
   const double vol = enclosed_volume(X, Y, Z, m.face_vert.data(), r.face_begin, r.face_end);
   const double C = vol - r.rest_volume_m3;
-  for (int32_t f = r.face_begin; f < r.face_end; ++f) {
-    const int32_t i = m.face_vert[3 * f], j = m.face_vert[3 * f + 1], k = m.face_vert[3 * f + 2];
-    auto add = [&](int32_t v, int32_t p, int32_t q) {  // x_p x x_q / 6
-      w.lap_x[v] += (Y[p] * Z[q] - Z[p] * Y[q]) / 6.0;
-      w.lap_y[v] += (Z[p] * X[q] - X[p] * Z[q]) / 6.0;
-      w.lap_z[v] += (X[p] * Y[q] - Y[p] * X[q]) / 6.0;
-    };
-    add(i, j, k), add(j, k, i), add(k, i, j);
-  }
+  add_volume_gradient(X, Y, Z, m.face_vert.data(), r.face_begin, r.face_end, 0, w.lap_x.data(), w.lap_y.data(),
+                      w.lap_z.data());
   double denom = 0.0;
   for (int32_t v = vb; v < ve; ++v)
     denom += m.vert_inv_mass[v] * w.free_mask[v] *

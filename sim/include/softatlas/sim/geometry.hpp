@@ -40,6 +40,12 @@ std::vector<double> mean_curvature(const std::vector<double>& V, const std::vect
 double enclosed_volume(const double* x, const double* y, const double* z, const int32_t* faces,
                        size_t face_begin, size_t face_end);
 double enclosed_volume(const std::vector<double>& V, const std::vector<int32_t>& F);
+// Its gradient (003 eqs 27-30 on the fan of tetrahedra the faces make with the origin):
+// grad_i V = 1/6 sum_{faces (i,j,k)} x_j x x_k, added into gx, gy, gz.
+// Vertex indices are faces[...] - offset in x, y, z and the gradient arrays.
+void add_volume_gradient(const double* x, const double* y, const double* z, const int32_t* faces,
+                         size_t face_begin, size_t face_end, int32_t offset, double* gx, double* gy,
+                         double* gz);
 
 // Surface area of faces [begin, end).
 double surface_area(const double* x, const double* y, const double* z, const int32_t* faces,

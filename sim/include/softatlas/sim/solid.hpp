@@ -76,6 +76,9 @@ struct SolidBody {
   std::vector<double> cell_grad;   // #ncell * 24: gradient of F_c = sum_j x_j g_j^T per node
   std::vector<int32_t> embed_tet;  // per organ vertex (v - vert_begin): tetrahedron
   std::vector<double> embed_w;     // per organ vertex * 4: barycentric weights
+  int32_t npiece = 0;              // closed pieces of the surface with a volume constraint (<= 8)
+  std::vector<int32_t> vert_piece; // per organ vertex: its piece (-1: none)
+  std::vector<double> piece_rest_volume;  // #npiece, m^3 (signed, as the faces are oriented)
   int32_t nfixed = 0;              // fixed surface vertices (anchors in the matrix)
   double anchor_weight = 0.0;      // N/m of each anchor
   double young_modulus_pa = 0.0, poisson_ratio = 0.0, damping_ratio = 0.0;
@@ -99,6 +102,10 @@ struct SolidWork {
   std::vector<double> cell_quat;   // #ncell * 4, #ncell * 9: the cells' rotation fits, as quat / rot
   std::vector<double> cell_rot;
   std::vector<double> fext;        // #nnode * 3 external nodal forces of this step
+  // the pieces' volume constraints: surface positions and volume gradient (#organ vertices * 3, x
+  // block then y then z), the gradients on the nodes (#npiece * #nnode * 3), their responses
+  // U = A^-1 G (#nnode x 3 #npiece, column-major), the grasp's share of them (k x 3 #npiece)
+  std::vector<double> vol_p, vol_g, vol_gn, vol_u, vol_res;
   // the tool's exact constraints: grasped vertices, Z = A^-1 C^T (#nnode x k, column-major),
   // Cholesky factor of S = C Z (k x k), multipliers (k * 3)
   std::vector<int32_t> grasp_verts;
@@ -134,6 +141,13 @@ SolidStats solid_step(const Model& model, State& state, Work& work);
 // The organ's surface vertices (positions and velocities in the state) from its lattice nodes;
 // returns their largest squared speed. After the solve, and after contact moved the nodes.
 double solid_surface_update(const Model& model, const SolidBody& body, State& state);
+
+// After contact moved some of the organ's nodes (node_acc[4 g + 3] > 0 for global node g, as
+// contact.cpp accumulates them): each closed piece's volume given back by the nodes contact left
+// alone, one mass-weighted projection (003 eq 25 with eqs 27-30 on the embedded surface), positions
+// and velocities; an organ pressed flat against its neighbour bulges elsewhere, as tissue does.
+void solid_restore_volume(const Model& model, const SolidBody& body, SolidWork& work, State& state,
+                          const double* node_acc);
 
 // One line for the compiled plan (explain): lattice size, material, damping, iterations.
 std::string solid_plan(const SolidBody& body);
