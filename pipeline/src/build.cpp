@@ -18,6 +18,7 @@
 
 #include "softatlas/io/ct_image.hpp"
 #include "softatlas/io/organ_set.hpp"
+#include "grid.hpp"
 #include "softatlas/pipeline/label_table.hpp"
 #include "softatlas/pipeline/topology.hpp"
 #include "softatlas/sim/error.hpp"
@@ -430,6 +431,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
     json q;
     io::TriMesh stage3;
     double reference_volume = 0.0;  // mask volume (labels) or input volume (closed meshes)
+    double voxel_mm = 0.0;          // the label's largest voxel spacing (labels only)
     t0 = Clock::now();
     if (!j.mesh_path.empty()) {
       say("surface: %s from mesh %s", j.name, j.mesh_path);
@@ -451,6 +453,8 @@ BuildResult build_organ_set(const BuildOptions& o) {
       const SurfaceResult s = label_surface(l.volume, j.values, o.surface, where);
       stage3 = s.mesh;
       reference_volume = s.mask_volume_mm3;
+      const auto sp = spacing_mm(l.volume);
+      voxel_mm = std::max({sp[0], sp[1], sp[2]});
       q["source"] = l.source.path;
       q["mask_voxels"] = s.mask_voxels;
       q["pieces_kept"] = s.pieces_kept;
@@ -471,6 +475,13 @@ BuildResult build_organ_set(const BuildOptions& o) {
     // Self-contact is expected of label surfaces (split non-manifold vertices) and is remeshed
     // away; a mesh file that intersects itself is broken input and gets wrapped first.
     ro.tolerate_self_contact = j.mesh_path.empty();
+    if (voxel_mm > 0) {
+      // A label's surface keeps its shape (1.5 voxels: the staircase the surface smooths is one)
+      // and its voxel volume (offset by at most one voxel).
+      ro.max_hausdorff_mm = 1.5 * voxel_mm;
+      ro.target_volume_mm3 = reference_volume;
+      ro.max_offset_mm = voxel_mm;
+    }
     const RemeshResult r = repair_and_remesh(stage3, ro, (j.mesh_path.empty() ? labels[j.source].source.path : j.mesh_path) + ": " + j.name);
     result.times.add("remesh", since(t0));
 
@@ -489,6 +500,21 @@ BuildResult build_organ_set(const BuildOptions& o) {
     q["components"] = rep.components;
     q["genus"] = rep.genus;
     q["hausdorff_mm"] = r.hausdorff_mm;
+    q["simplification"] = r.simplification;
+    if (voxel_mm > 0) {
+      q["voxel_mm"] = voxel_mm;
+      q["hausdorff_voxels"] = r.hausdorff_mm / voxel_mm;
+      q["isotropic_hausdorff_mm"] = r.isotropic_hausdorff_mm;
+      q["volume_offset_mm"] = r.volume_offset_mm;
+      q["shape_within_bound"] = r.hausdorff_mm <= ro.max_hausdorff_mm;
+      if (r.hausdorff_mm > ro.max_hausdorff_mm) {
+        const std::string note = "the surface is " + fmt(r.hausdorff_mm) + " mm (" + fmt(r.hausdorff_mm / voxel_mm) +
+                                 " voxels) from the label's at its farthest, more than 1.5 voxels: a thin part may be "
+                                 "rounded off at this budget (a larger --budget keeps it)";
+        q["notes"].push_back(note);
+        say("  warning: %s: %s", j.name, note);
+      }
+    }
     q["mean_distance_mm"] = r.mean_distance_mm;
     q["distance_reference"] = "stage-3 surface (smoothed flying-edges surface of the label, or the input mesh)";
     q["target_edge_mm"] = r.target_edge_mm;
@@ -498,6 +524,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
     if (reference_volume > 0) {
       q[j.mesh_path.empty() ? "mask_volume_mm3" : "input_volume_mm3"] = reference_volume;
       q["volume_ratio"] = volume / reference_volume;
+      q["volume_within_10pct"] = std::abs(volume / reference_volume - 1.0) <= 0.10;
     }
     q["repairs"] = r.repairs;
     say("  %s: %s", j.name,

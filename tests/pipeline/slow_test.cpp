@@ -294,7 +294,7 @@ void expect_set_contract(const std::string& dir) {
     EXPECT_GE(r.share_angle_ge_20, 0.99) << e.name;
     EXPECT_EQ(q["organs"][e.name]["self_intersections"], false) << e.name;
     if (q["organs"][e.name].contains("volume_ratio")) {
-      EXPECT_NEAR(q["organs"][e.name]["volume_ratio"].get<double>(), 1.0, 0.15) << e.name;
+      EXPECT_NEAR(q["organs"][e.name]["volume_ratio"].get<double>(), 1.0, 0.10) << e.name;
     }
   }
 }

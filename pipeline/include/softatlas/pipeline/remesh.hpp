@@ -1,5 +1,6 @@
-// Stage 4, repair and remesh (CGAL): closed, manifold, self-intersection free, isotropic,
-// simplified to the face budget.
+// Stage 4, repair and remesh (CGAL): closed, manifold, self-intersection free, simplified to
+// the face budget: isotropic where that keeps the shape, quadric (Garland-Heckbert) where an
+// isotropic mesh of the budget would round off a thin tip; volume restored to the reference.
 #pragma once
 
 #include <string>
@@ -19,6 +20,15 @@ struct RemeshOptions {
   // Closed input that only touches itself is remeshed first (label surfaces); the final mesh is
   // always checked for self-intersections.
   bool tolerate_self_contact = true;
+  // Shape bound: when the isotropic mesh is further than this from the input (symmetric
+  // Hausdorff), the quadric route is tried and the closer of the two kept. 0 = isotropic only.
+  double max_hausdorff_mm = 0.0;
+  // Volume to give the final surface back (the label's voxel volume): smoothing, the staircase
+  // chamfer of flying edges and remeshing all shrink a surface, thin ones most. The surface is
+  // offset along its normals by (target - V) / A until within 0.5 %, by at most max_offset_mm
+  // in all. 0 = keep the volume as it comes out.
+  double target_volume_mm3 = 0.0;
+  double max_offset_mm = 0.0;
 };
 
 struct RemeshResult {
@@ -28,6 +38,9 @@ struct RemeshResult {
   double hausdorff_mm = 0.0;         // symmetric, vertex-sampled, to the input surface
   double mean_distance_mm = 0.0;     // mean of the two one-sided vertex distances
   double target_edge_mm = 0.0;
+  std::string simplification = "isotropic";  // or "garland_heckbert"
+  double isotropic_hausdorff_mm = 0.0;        // what the isotropic route reached
+  double volume_offset_mm = 0.0;              // normal offset that restored the volume
 };
 
 // Throws InputError naming `where` if the budget is below what a closed surface of the input's
