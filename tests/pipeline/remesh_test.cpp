@@ -98,7 +98,9 @@ TEST(Remesh, LabelSurfacesKeepTheirVoxelVolumeAndShape) {
     EXPECT_NEAR(v / c.stage3.mask_volume_mm3, 1.0, 0.02) << organ << " at " << h << " mm";
     EXPECT_LE(std::abs(c.r.volume_offset_mm), h) << organ;
     // The quadric route is only taken when it is closer than the isotropic one.
-    if (c.r.simplification != "isotropic") EXPECT_LT(c.r.hausdorff_mm, c.r.isotropic_hausdorff_mm) << organ;
+    if (c.r.simplification != "isotropic") {
+      EXPECT_LT(c.r.hausdorff_mm, c.r.isotropic_hausdorff_mm) << organ;
+    }
   }
 }
 
