@@ -33,6 +33,8 @@ void check_keys(const std::string& file, const YAML::Node& map, const std::set<s
                 const std::string& what) {
   if (!map.IsMap()) throw InputError(at(file, map), what + ": expected a map");
   for (const auto& kv : map) {
+    if (!kv.first.IsScalar())
+      throw InputError(at(file, kv.first), "a key in " + what + " is a list or a map; expected a name");
     const std::string key = kv.first.as<std::string>();
     if (!allowed.count(key)) {
       std::string list;

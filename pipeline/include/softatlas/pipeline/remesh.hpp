@@ -38,7 +38,7 @@ struct RemeshResult {
   double hausdorff_mm = 0.0;         // symmetric, vertex-sampled, to the input surface
   double mean_distance_mm = 0.0;     // mean of the two one-sided vertex distances
   double target_edge_mm = 0.0;
-  std::string simplification = "isotropic";  // or "garland_heckbert"
+  std::string simplification = "isotropic";  // or "isotropic_two_level", "garland_heckbert+isotropic"
   double isotropic_hausdorff_mm = 0.0;        // what the isotropic route reached
   double volume_offset_mm = 0.0;              // normal offset that restored the volume
 };
