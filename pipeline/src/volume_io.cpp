@@ -895,7 +895,9 @@ void check_dicom_lengths(const fs::path& f) {
         if (pos + 12 > d.size()) throw InputError(where, "truncated DICOM data element at byte " + std::to_string(pos));
         len = u32(pos + 8);
         pos += 12;
-        undefined_ok = vr == "SQ" || vr == "OB" || vr == "OW" || vr == "UN";
+        // An undefined length is a sequence (SQ, UN) or encapsulated Pixel Data; on any other
+        // OB/OW element GDCM asserts (ExplicitDataElement::ReadValue: VR must be UN).
+        undefined_ok = vr == "SQ" || vr == "UN" || ((vr == "OB" || vr == "OW") && group == 0x7FE0 && elem == 0x0010);
       } else {
         len = u16(pos + 6);
         pos += 8;
