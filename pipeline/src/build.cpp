@@ -509,7 +509,8 @@ BuildResult build_organ_set(const BuildOptions& o) {
       q["shape_within_bound"] = r.hausdorff_mm <= ro.max_hausdorff_mm;
       if (r.hausdorff_mm > ro.max_hausdorff_mm) {
         const std::string note = "the surface is " + fmt(r.hausdorff_mm) + " mm (" + fmt(r.hausdorff_mm / voxel_mm) +
-                                 " voxels) from the label's at its farthest, more than 1.5 voxels: a thin part may be "
+                                 " voxels) from the label's at its farthest, more than " +
+                                 fmt(ro.max_hausdorff_mm / voxel_mm) + " voxels: a thin part may be "
                                  "rounded off at this budget (a larger --budget keeps it)";
         q["notes"].push_back(note);
         say("  warning: %s: %s", j.name, note);

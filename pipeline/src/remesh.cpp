@@ -8,9 +8,9 @@
 //   outward -> (alpha wrap + redo if the result self-intersects)
 //   -> if that is further from the input than the shape bound: two-level sizing (what it
 //   misses remeshed from the input at half the edge length, up to three rounds); if still
-//   further: quadric-error collapse
-//   (Garland & Heckbert 1997) from the repaired surface to the budget, relaxed with its sharp
-//   edges held and projected back; the closer of the two is kept
+//   further: quadric-error collapse (Garland & Heckbert 1997) from the repaired surface,
+//   remeshed isotropically with its sharp edges held. A candidate replaces the isotropic mesh
+//   only if closer, self-intersection free and with its triangle quality
 //   -> normal offset that gives the surface its reference volume back.
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
@@ -43,6 +43,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 #include <vector>
 
@@ -155,6 +156,29 @@ void shape_distance(const io::TriMesh& out, const io::TriMesh& input, const Surf
   *mean_mm = 0.5 * (m1 + m2);
 }
 
+// Edge collapse down to `faces` faces (a closed triangle mesh has E = 3F/2; each collapse
+// removes 3 edges and 2 faces), cheapest first by `cost`.
+using Bounded_midpoint = SMS::Bounded_normal_change_placement<SMS::Midpoint_placement<Mesh>>;
+
+template <class Cost, class Placement>
+void collapse_to_faces(Mesh& m, std::size_t faces, const Cost& cost, const Placement& placement) {
+  SMS::Count_stop_predicate<Mesh> stop(3 * faces / 2);
+  SMS::edge_collapse(m, stop, CGAL::parameters::get_cost(cost).get_placement(placement));
+  m.collect_garbage();
+}
+
+// A candidate mesh's symmetric Hausdorff distance to the input, or infinity if it does not
+// qualify to replace the isotropic mesh: >= 99 % of its triangles at >= 20 degrees (the
+// isotropic route's quality) and free of self-intersections.
+double qualified_distance(const Mesh& m, const io::TriMesh& input, const SurfaceTree& input_tree) {
+  const io::TriMesh t = to_trimesh(m);
+  if (inspect_surface(t).share_angle_ge_20 < 0.99 || PMP::does_self_intersect(m))
+    return std::numeric_limits<double>::infinity();
+  double h, mean;
+  shape_distance(t, input, input_tree, &h, &mean);
+  return h;
+}
+
 // Isotropic remeshing aiming at `target_faces`, then edge collapse down to `budget` faces, then
 // tangential relaxation (keeps the count, evens the angles).
 // Edges sharper than `keep_sharp_deg` (0 = none) are constraints: split and moved only along
@@ -176,7 +200,11 @@ Mesh remesh_to_count(const Mesh& input, int budget, const RemeshOptions& o, doub
   // fine input is built once (large CTs give million-face surfaces).
   Mesh first;
   for (int attempt = 0; attempt < 6; ++attempt) {
-    Mesh m = attempt == 0 ? base : first;
+    Mesh m;
+    if (attempt == 0)
+      m = std::move(base);  // used once: later attempts start from the first pass
+    else
+      m = first;
     PMP::isotropic_remeshing(faces(m), L, m,
                              PMP::parameters::number_of_iterations(o.remesh_iterations)
                                  .protect_constraints(false)
@@ -194,15 +222,8 @@ Mesh remesh_to_count(const Mesh& input, int budget, const RemeshOptions& o, doub
   }
   if (!have) return Mesh();
   *edge_out = L;
-  if (static_cast<int>(best.number_of_faces()) > budget) {
-    // A closed triangle mesh has E = 3F/2; each collapse removes 3 edges and 2 faces.
-    const std::size_t target_edges = static_cast<std::size_t>(3 * budget / 2);
-    SMS::Count_stop_predicate<Mesh> stop(target_edges);
-    SMS::Edge_length_cost<Mesh> cost;
-    SMS::Bounded_normal_change_placement<SMS::Midpoint_placement<Mesh>> placement;
-    SMS::edge_collapse(best, stop, CGAL::parameters::get_cost(cost).get_placement(placement));
-    best.collect_garbage();
-  }
+  if (static_cast<int>(best.number_of_faces()) > budget)
+    collapse_to_faces(best, budget, SMS::Edge_length_cost<Mesh>(), Bounded_midpoint());
   if (o.relaxation_iterations > 0)
     PMP::tangential_relaxation(vertices(best), best,
                                PMP::parameters::number_of_iterations(o.relaxation_iterations)
@@ -219,7 +240,6 @@ class MissedPoints {
   MissedPoints(const std::vector<Point>& pts, double radius) : r_(radius) {
     for (const Point& p : pts) cells_[key(cell(p.x()), cell(p.y()), cell(p.z()))].push_back(p);
   }
-  bool empty() const { return cells_.empty(); }
   bool near(const Point& p) const {
     const long i = cell(p.x()), j = cell(p.y()), k = cell(p.z());
     for (long a = i - 1; a <= i + 1; ++a)
@@ -305,13 +325,8 @@ Mesh remesh_two_level(const Mesh& input, int budget, const RemeshOptions& o, con
     if (F < budget) coarse_mm *= 0.97;
   }
   if (best.is_empty()) return Mesh();
-  if (static_cast<int>(best.number_of_faces()) > budget) {
-    SMS::Count_stop_predicate<Mesh> stop(static_cast<std::size_t>(3 * budget / 2));
-    SMS::Bounded_normal_change_placement<SMS::Midpoint_placement<Mesh>> placement;
-    SMS::edge_collapse(best, stop,
-                       CGAL::parameters::get_cost(Sized_length_cost{&missed, fine_mm, coarse_mm}).get_placement(placement));
-    best.collect_garbage();
-  }
+  if (static_cast<int>(best.number_of_faces()) > budget)
+    collapse_to_faces(best, budget, Sized_length_cost{&missed, fine_mm, coarse_mm}, Bounded_midpoint());
   if (o.relaxation_iterations > 0)
     PMP::tangential_relaxation(vertices(best), best, PMP::parameters::number_of_iterations(o.relaxation_iterations));
   for (auto v : best.vertices()) best.point(v) = input_tree.closest(best.point(v));
@@ -389,19 +404,11 @@ Mesh quadric_to_count(const Mesh& base, int budget) {
   {
     using GH = SMS::GarlandHeckbert_plane_policies<Mesh, K>;
     GH gh(m);
-    SMS::Count_stop_predicate<Mesh> stop(static_cast<std::size_t>(3 * std::lround(1.15 * budget) / 2));
-    const Quadric_cost_with_length<GH::Get_cost> cost{&gh.get_cost(), 0.01};
-    SMS::Bounded_normal_change_placement<GH::Get_placement> placement(gh.get_placement());
-    SMS::edge_collapse(m, stop, CGAL::parameters::get_cost(cost).get_placement(placement));
-    m.collect_garbage();
+    collapse_to_faces(m, std::lround(1.15 * budget), Quadric_cost_with_length<GH::Get_cost>{&gh.get_cost(), 0.01},
+                      SMS::Bounded_normal_change_placement<GH::Get_placement>(gh.get_placement()));
   }
-  {
-    // The last 15 % by shortest edge first: removes the needles the quadric leaves.
-    SMS::Count_stop_predicate<Mesh> stop(static_cast<std::size_t>(3 * budget / 2));
-    SMS::Bounded_normal_change_placement<SMS::Midpoint_placement<Mesh>> placement;
-    SMS::edge_collapse(m, stop, CGAL::parameters::get_cost(SMS::Edge_length_cost<Mesh>()).get_placement(placement));
-    m.collect_garbage();
-  }
+  // The last 15 % by shortest edge first: removes the needles the quadric leaves.
+  collapse_to_faces(m, budget, SMS::Edge_length_cost<Mesh>(), Bounded_midpoint());
   orient_outward(m);
   flip_slivers(m, 20.0);
   return m;
@@ -537,22 +544,21 @@ RemeshResult repair_and_remesh(const io::TriMesh& input, const RemeshOptions& o,
     // gets half the edge length (two-level sizing); up to three rounds, each adding what the
     // last one still missed.
     std::vector<Point> missed;
+    std::vector<char> is_missed(input.vertex_count(), 0);
     Mesh last = chosen;
     for (int round = 0; round < 3 && res.hausdorff_mm > o.max_hausdorff_mm; ++round) {
       {
         const SurfaceTree last_tree(to_trimesh(last));
         for (size_t v = 0; v < input.vertex_count(); ++v) {
           const Point p(input.vertices[3 * v], input.vertices[3 * v + 1], input.vertices[3 * v + 2]);
-          if (last_tree.distance(p) > 0.8 * o.max_hausdorff_mm) missed.push_back(p);
+          if (!is_missed[v] && last_tree.distance(p) > 0.8 * o.max_hausdorff_mm) missed.push_back(p), is_missed[v] = 1;
         }
       }
       const MissedPoints near(missed, res.target_edge_mm);
       Mesh two = remesh_two_level(repaired, o.face_budget, o, near, res.target_edge_mm, input_tree);
       if (two.is_empty()) break;
-      const io::TriMesh t = to_trimesh(two);
-      double h_two;
-      shape_distance(t, input, input_tree, &h_two, &mean);
-      if (h_two < res.hausdorff_mm && inspect_surface(t).share_angle_ge_20 >= 0.99 && !PMP::does_self_intersect(two)) {
+      const double h_two = qualified_distance(two, input, input_tree);
+      if (h_two < res.hausdorff_mm) {
         chosen = two;
         res.hausdorff_mm = h_two;
         res.simplification = "isotropic_two_level";
@@ -568,15 +574,11 @@ RemeshResult repair_and_remesh(const io::TriMesh& input, const RemeshOptions& o,
     const Mesh q = quadric_to_count(repaired, o.face_budget);
     if (!q.is_empty() && !PMP::does_self_intersect(q)) {
       for (const double sharp_deg : {45.0, 30.0}) {
-        double edge, h_even;
+        double edge;
         Mesh even = remesh_to_count(q, o.face_budget, o, sharp_deg, &edge);
         if (even.is_empty()) continue;
         orient_outward(even);
-        const io::TriMesh t = to_trimesh(even);
-        shape_distance(t, input, input_tree, &h_even, &mean);
-        if (h_even > o.max_hausdorff_mm || inspect_surface(t).share_angle_ge_20 < 0.99 ||
-            PMP::does_self_intersect(even))
-          continue;
+        if (qualified_distance(even, input, input_tree) > o.max_hausdorff_mm) continue;
         chosen = std::move(even);
         res.simplification = "garland_heckbert+isotropic";
         res.target_edge_mm = edge;

@@ -1,6 +1,6 @@
 // Stage 4, repair and remesh (CGAL): closed, manifold, self-intersection free, simplified to
-// the face budget: isotropic where that keeps the shape, quadric (Garland-Heckbert) where an
-// isotropic mesh of the budget would round off a thin tip; volume restored to the reference.
+// the face budget: isotropic, refined where that rounds off a thin tip or rim (two-level
+// sizing, then a Garland-Heckbert seeded remesh); volume restored to the reference.
 #pragma once
 
 #include <string>
@@ -21,7 +21,8 @@ struct RemeshOptions {
   // always checked for self-intersections.
   bool tolerate_self_contact = true;
   // Shape bound: when the isotropic mesh is further than this from the input (symmetric
-  // Hausdorff), the quadric route is tried and the closer of the two kept. 0 = isotropic only.
+  // Hausdorff), refined candidates are tried; one replaces it only if closer at the same
+  // triangle quality (RemeshResult::simplification says which). 0 = isotropic only.
   double max_hausdorff_mm = 0.0;
   // Volume to give the final surface back (the label's voxel volume): smoothing, the staircase
   // chamfer of flying edges and remeshing all shrink a surface, thin ones most. The surface is
