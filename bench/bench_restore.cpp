@@ -11,7 +11,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <random>
 
 #include "softatlas/bench/cli.hpp"
 #include "softatlas/io/cli.hpp"
@@ -113,23 +112,7 @@ RestoreResult run_restore(const sim::SceneDesc& scene, const std::string& organ_
   out.dt_s = m.dt_s;
   out.grasped_vertices = static_cast<int>(grasp.size());
 
-  // rest plus a random perturbation of opt.perturb_m per free vertex (random directions)
-  std::mt19937 rng(opt.seed);
-  std::normal_distribution<double> gauss(0.0, 1.0);
-  for (int32_t v = 0; v < m.nvert; ++v) {
-    if (m.vert_inv_mass[v] == 0) continue;
-    double d[3] = {gauss(rng), gauss(rng), gauss(rng)};
-    const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    const double sc = n > 0 ? opt.perturb_m / n : 0.0;
-    s.x[v] += sc * d[0], s.y[v] += sc * d[1], s.z[v] += sc * d[2];
-  }
-  // solid organs: the lattice nodes are the degrees of freedom (their surface follows them)
-  for (size_t i = 0; i + 2 < s.solid_x.size(); i += 3) {
-    double d[3] = {gauss(rng), gauss(rng), gauss(rng)};
-    const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-    const double sc = n > 0 ? opt.perturb_m / n : 0.0;
-    for (int c = 0; c < 3; ++c) s.solid_x[i + c] += sc * d[c];
-  }
+  sim::perturb(m, s, opt.perturb_m, opt.seed);  // rest plus a random perturbation
 
   const double rest_volume = m.organs[organ].rest_volume_m3;
   auto steps_for = [&](double seconds) { return static_cast<int64_t>(std::llround(seconds / m.dt_s)); };

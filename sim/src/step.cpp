@@ -1,8 +1,9 @@
 // The step, as a table of contents: each line is a family of equations in its own file
 // (engine.hpp lists them). Also make_state / make_work (every buffer the step uses is sized
-// here) and the paper's stopping rule.
+// here), perturb (the start of the rest tests) and the paper's stopping rule.
 #include <algorithm>
 #include <cmath>
+#include <random>
 
 #include "engine.hpp"
 #include "workers.hpp"
@@ -22,6 +23,28 @@ State make_state(const Model& m) {
   init_solid_state(m, s);                              // solid_step.cpp: lattice nodes at rest
   s.contact_let_go.assign(m.contact.on ? m.nvert : 0, 0);
   return s;
+}
+
+void perturb(const Model& m, State& s, double amplitude_m, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  auto direction = [&](double d[3]) {
+    for (int c = 0; c < 3; ++c) d[c] = gauss(rng);
+    const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    const double sc = n > 0 ? amplitude_m / n : 0.0;
+    for (int c = 0; c < 3; ++c) d[c] *= sc;
+  };
+  for (int32_t v = 0; v < m.nvert; ++v) {
+    if (m.vert_inv_mass[v] == 0) continue;
+    double d[3];
+    direction(d);
+    s.x[v] += d[0], s.y[v] += d[1], s.z[v] += d[2];
+  }
+  for (size_t i = 0; i + 2 < s.solid_x.size(); i += 3) {  // the lattice carries a solid's surface
+    double d[3];
+    direction(d);
+    for (int c = 0; c < 3; ++c) s.solid_x[i + c] += d[c];
+  }
 }
 
 Work make_work(const Model& m) {

@@ -143,7 +143,7 @@ std::vector<double> nelder_mead(const std::function<double(const std::vector<dou
 
 }  // namespace
 
-json fit_parameters(const Options& opt, const TriMesh& source, const sim::fem::Model& fmodel,
+json fit_parameters(const Options& opt, const TriMesh& source, const sim::fem::QuadraticModel& fmodel,
                     const std::vector<LoadCase>& loads, const std::vector<std::vector<double>>& ref_x,
                     const std::vector<std::array<double, 3>>& ref_reaction) {
   const bool full = opt.grid == Grid::full;
@@ -152,7 +152,7 @@ json fit_parameters(const Options& opt, const TriMesh& source, const sim::fem::M
   const std::vector<int32_t> fixed = support_vertices(surface.V, kSupportFraction);
   const std::array<double, 3> top = top_point(source);
   const std::vector<int32_t> tool = region(surface.V, top, kToolRadius);
-  const sim::fem::Embedding emb = sim::fem::embed_points(fmodel, surface.V);
+  const sim::fem::Embedding emb = sim::fem::embed_points(fmodel.linear, surface.V);
   std::vector<Reference> refs(loads.size());
   size_t train = 0;
   for (size_t i = 0; i < loads.size(); ++i) {

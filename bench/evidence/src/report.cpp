@@ -28,6 +28,10 @@ std::string fx(double v, int decimals = 2) {
   return b;
 }
 double num(const json& j) { return j.is_number() ? j.get<double>() : NAN; }
+// A field that only some runs have (attachment loads): blank when absent.
+std::string opt_num(const json& run, const char* key, int decimals) {
+  return run.contains(key) ? fx(num(run[key]), decimals) : "";
+}
 
 }  // namespace
 
@@ -41,11 +45,20 @@ std::string accuracy_markdown(const json& r) {
     const auto& ref = r["reference"];
     o << "\nReference: " << ref["model"].get<std::string>() << ", " << ref["nodes"] << " nodes, " << ref["tets"]
       << " tetrahedra (CGAL Mesh_3, cell " << f(num(ref["cell_size_m"])) << " m), E = " << f(num(ref["young_modulus_pa"]))
-      << " Pa, nu = " << f(num(ref["poisson_ratio"])) << ".\n\n| load | Newton iterations | converged | seconds | reaction on tool (N) |\n|---|---|---|---|---|\n";
+      << " Pa, nu = " << f(num(ref["poisson_ratio"])) << ".\n\n| load | Newton iterations | converged | relative residual | seconds | reaction on tool (N) | grasp stiffness (N/m) |\n|---|---|---|---|---|---|---|\n";
     for (const auto& s : ref["solutions"])
       o << "| " << s["load"].get<std::string>() << " | " << s["newton_iterations"] << " | " << (s["converged"].get<bool>() ? "yes" : "no")
-        << " | " << fx(num(s["seconds"]), 2) << " | [" << f(num(s["reaction_N"][0])) << ", " << f(num(s["reaction_N"][1])) << ", "
-        << f(num(s["reaction_N"][2])) << "] |\n";
+        << " | " << f(num(s["relative_residual"]), 2) << " | " << fx(num(s["seconds"]), 2) << " | [" << f(num(s["reaction_N"][0]))
+        << ", " << f(num(s["reaction_N"][1])) << ", " << f(num(s["reaction_N"][2])) << "] | "
+        << (s.contains("grasp_stiffness_N_per_m") ? f(num(s["grasp_stiffness_N_per_m"])) : "") << " |\n";
+    if (ref.contains("refinement")) {
+      const auto& rf = ref["refinement"];
+      o << "\nMesh convergence of the reference: load " << rf["load"].get<std::string>() << " solved again with cell "
+        << f(num(rf["cell_size_m"])) << " m (" << rf["tets"] << " tetrahedra, " << rf["nodes"] << " nodes, converged: "
+        << (rf["converged"].get<bool>() ? "yes" : "no") << "): the liver's surface moves by " << fx(num(rf["rms_change_mm"]), 3)
+        << " mm RMS (" << fx(num(rf["max_change_mm"]), 3) << " mm max), the reaction by " << fx(num(rf["reaction_change_pct"]), 2)
+        << " %.\n";
+    }
   }
   // Final runs per model/integrator/load at the largest and smallest face counts.
   std::set<int> faces;
@@ -55,7 +68,7 @@ std::string accuracy_markdown(const json& r) {
   for (const auto& run : r["runs"]) loads.insert(run["load"].get<std::string>());
   o << "\n### Final state of every run (after the stopping rule or the step budget)\n\n";
   for (const std::string& load : loads) {
-    o << "\n**Load " << load << "**\n\n| model | integrator | faces | iterations | ms/step | RMS err (mm) | max err (mm) | volume (%) | force err (%) | restoration x̄ / s (mm) |\n|---|---|---|---|---|---|---|---|---|---|\n";
+    o << "\n**Load " << load << "**\n\n| model | integrator | faces | iterations | ms/step | RMS err (mm) | max err (mm) | volume (%) | tool force vs ref (%) | grasp stiffness / ref | restoration x̄ / s (mm) |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const auto& run : r["runs"]) {
       if (run["load"] != load || !run.value("final", false)) continue;
       if (run["model"] != "fem" && run["faces"].get<int>() != *faces.begin() && run["faces"].get<int>() != *faces.rbegin()) continue;
@@ -65,7 +78,8 @@ std::string accuracy_markdown(const json& r) {
       o << "| " << run["model"].get<std::string>() << " | " << run["integrator"].get<std::string>() << " | " << run["faces"]
         << " | " << run["iterations"] << (run.value("converged", false) ? " (rest)" : "") << " | " << f(num(run["ms_per_step"]))
         << " | " << fx(num(run["rms_error_mm"])) << " | " << fx(num(run["max_error_mm"])) << " | "
-        << fx(num(run["volume_change_pct"])) << " | " << fx(num(run["force_error_pct"]), 1) << " | " << rest << " |\n";
+        << fx(num(run["volume_change_pct"])) << " | " << opt_num(run, "force_error_pct", 1) << " | "
+        << opt_num(run, "grasp_stiffness_ratio", 3) << " | " << rest << " |\n";
     }
   }
   // Pareto front of the main load.
@@ -82,7 +96,7 @@ std::string accuracy_markdown(const json& r) {
     double budget_ms;
   };
   o << "\n### Recommendation (computed from the runs: the lowest mean RMS error over the loads among settings within the budget per step)\n\n"
-       "| use | budget per step | model | integrator | faces | mean RMS err (mm) | mean abs. volume change (%) | mean force err (%) | ms/step |\n|---|---|---|---|---|---|---|---|---|\n";
+       "| use | budget per step | model | integrator | faces | mean RMS err (mm) | mean abs. volume change (%) | mean grasp stiffness error (%) | ms/step |\n|---|---|---|---|---|---|---|---|---|\n";
   for (const Use& use : {Use{"1 kHz haptics", 1.0}, Use{"60 Hz visual (one step per frame)", 16.0}, Use{"accuracy (no budget)", INFINITY}}) {
     std::map<std::string, std::vector<const json*>> groups;
     for (const auto& run : r["runs"]) {
@@ -95,13 +109,14 @@ std::string accuracy_markdown(const json& r) {
     double best_err = INFINITY, vol = 0, force = 0, ms = 0;
     for (const auto& [key, rs] : groups) {
       double e = 0, v = 0, fe = 0, t = 0;
+      int nfe = 0;
       for (const json* p : rs) {
         e += num((*p)["rms_error_mm"]);
         v += std::abs(num((*p)["volume_change_pct"]));
-        fe += num((*p)["force_error_pct"]);
+        if (p->contains("grasp_stiffness_ratio")) fe += 100.0 * std::abs(num((*p)["grasp_stiffness_ratio"]) - 1.0), ++nfe;
         t = std::max(t, num((*p)["ms_per_step"]));
       }
-      e /= rs.size(), v /= rs.size(), fe /= rs.size();
+      e /= rs.size(), v /= rs.size(), fe = nfe ? fe / nfe : NAN;
       if (rs.size() < loads.size() / 2 || t > use.budget_ms || !(e < best_err)) continue;
       best = key, best_err = e, vol = v, force = fe, ms = t;
     }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <random>
 
 #include "softatlas/sim/error.hpp"
 #include "softatlas/sim/sim.hpp"
@@ -35,11 +36,27 @@ ModelSpec paper_spec(const std::string& model, const std::string& integrator, in
     s.flexion_stiffness = 1e-4;
     s.volume_stiffness = 0.5;
   }
-  if (model == "tmm" || model == "fem") s.integrator = "implicit";
+  if (model == "tmm" || model == "fem" || model == "solid") s.integrator = "implicit";
+  // The solid (volumetric) model and the FEM are materials, not membranes: nearly incompressible
+  // as the reference (organs: nu = 0.49, sim/model.hpp).
+  if (model == "solid" || model == "fem") s.poisson_ratio = 0.49;
   return s;
 }
 
 namespace {
+
+// x (#N*3) += amplitude in a random direction per point, for the points with free[i] != 0; the
+// same draw as sim::perturb for the core's models.
+void perturb_points(std::vector<double>& x, const std::vector<uint8_t>& free, double amplitude, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (size_t i = 0; i < free.size(); ++i) {
+    if (!free[i]) continue;
+    double d[3] = {gauss(rng), gauss(rng), gauss(rng)};
+    const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    for (int c = 0; c < 3; ++c) x[3 * i + c] += n > 0 ? amplitude * d[c] / n : 0.0;
+  }
+}
 
 // ---- mass-spring (the core) --------------------------------------------------------------------
 class MassSpring final : public Simulation {
@@ -57,6 +74,7 @@ class MassSpring final : public Simulation {
     else if (name == "cmsm") m.model = sim::ModelKind::cmsm;
     else if (name == "nmsm" || name == "nmsm_p2") m.model = sim::ModelKind::nmsm;
     else if (name == "flexion") m.model = sim::ModelKind::flexion;
+    else if (name == "solid") m.model = sim::ModelKind::solid;
     else throw InputError("model", "unknown mass-spring model '" + name + "'");
     m.young_modulus_pa = spec.young_modulus_pa;
     m.thickness_m = spec.thickness_m;
@@ -75,6 +93,7 @@ class MassSpring final : public Simulation {
     m.compensation_iterations = spec.compensation_iterations;
     m.flexion_stiffness = spec.flexion_stiffness;
     m.volume_stiffness = spec.volume_stiffness;
+    if (m.model == sim::ModelKind::solid) m.poisson_ratio = spec.poisson_ratio;
     scene.organs.push_back(organ);
     if (!sim::parse_integrator(spec.integrator, scene.integrator))
       throw InputError("integrator", "expected verlet, semi_implicit or implicit, got '" + spec.integrator + "'");
@@ -100,6 +119,7 @@ class MassSpring final : public Simulation {
     sim::release(state_);
     sim::wake(model_, state_, 0);
   }
+  void perturb(double amplitude_m, uint32_t seed) override { sim::perturb(model_, state_, amplitude_m, seed); }
   StepOut step() override {
     const sim::StepReport r = sim::step(model_, state_, work_);
     StepOut o;
@@ -145,6 +165,9 @@ class TensorMass final : public Simulation {
     p.cg_iterations = spec.cg_iterations;
     if (!(spec.dt_s > 0)) throw InputError("dt_s", "expected a positive time step");
     model_ = sim::tmm::compile(surface.V, surface.F, fixed, p);
+    free_.assign(surface.nvert(), 1);
+    for (int32_t v : fixed)
+      if (v >= 0 && v < surface.nvert()) free_[v] = 0;
     state_ = sim::tmm::make_state(model_);
     work_ = sim::tmm::make_work(model_);
     good_ = state_;
@@ -169,6 +192,10 @@ class TensorMass final : public Simulation {
     sim::tmm::attach(state_, verts, o, it);
   }
   void release() override { sim::tmm::release(state_); }
+  void perturb(double amplitude_m, uint32_t seed) override {
+    perturb_points(state_.x, free_, amplitude_m, seed);
+    good_.x = state_.x;
+  }
   StepOut step() override {
     const sim::tmm::StepInfo info = sim::tmm::step(model_, state_, work_, spec_.dt_s);
     StepOut o;
@@ -212,6 +239,7 @@ class TensorMass final : public Simulation {
   sim::tmm::Model model_;
   sim::tmm::State state_, good_;
   sim::tmm::Work work_;
+  std::vector<uint8_t> free_;
   int since_good_ = 0;
   bool clamped_ = false;
   double size_ = 1.0;
@@ -269,6 +297,11 @@ class FemDynamics final : public Simulation {
     load_ = base_;
     tool_.clear();
     attach_steps_ = 0;
+  }
+  void perturb(double amplitude_m, uint32_t seed) override {
+    std::vector<uint8_t> free(model_.nnode);
+    for (int32_t n = 0; n < model_.nnode; ++n) free[n] = !base_.dof_fixed[3 * n];
+    perturb_points(state_.x, free, amplitude_m, seed);
   }
   StepOut step() override {
     if (attach_steps_ > 0) {

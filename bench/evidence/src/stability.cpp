@@ -68,10 +68,14 @@ json run_stability(const Options& opt) {
     std::string name;
     bool attach;
     std::array<double, 3> value;
+    double perturb_m = 0.0;  // > 0: no load, rest plus this random perturbation (self-excitation)
   };
+  const Load unloaded{"rest_perturbed", false, {0, 0, 0}, 1e-6};
   const std::vector<Load> loads = full ? std::vector<Load>{{"force_1N", false, {0, 1, 0}}, {"force_10N", false, {0, 10, 0}},
-                                                           {"pull_10mm", true, {0, 0.01, 0}}, {"pull_100mm", true, {0, 0.1, 0}}}
-                                       : std::vector<Load>{{"force_10N", false, {0, 10, 0}}, {"pull_100mm", true, {0, 0.1, 0}}};
+                                                           {"pull_10mm", true, {0, 0.01, 0}}, {"pull_100mm", true, {0, 0.1, 0}},
+                                                           unloaded}
+                                       : std::vector<Load>{{"force_10N", false, {0, 10, 0}}, {"pull_100mm", true, {0, 0.1, 0}},
+                                                           unloaded};
   const std::vector<std::string> meshes = full || !tiny ? std::vector<std::string>{"good", "sliver", "short_edge", "flipped"}
                                                         : std::vector<std::string>{"good", "flipped"};
   std::vector<std::pair<std::string, std::string>> combos;
@@ -82,6 +86,7 @@ json run_stability(const Options& opt) {
   for (const auto& m : models)
     for (const auto& i : integ) combos.push_back({m, i});
   combos.push_back({"tmm", "implicit"});
+  if (!tiny) combos.push_back({"solid", "implicit"});  // the atlas default (its own solver)
   const int64_t steps = full ? 200 : 100;
   const TriMesh sphere = icosphere(2, 0.05);
   std::vector<int32_t> fixed;
@@ -108,6 +113,9 @@ json run_stability(const Options& opt) {
               if (model == "tmm") {
                 // Same order of stiffness: a membrane's K ~ E t for unit-aspect triangles.
                 spec.young_modulus_pa = k / spec.thickness_m;
+              } else if (model == "solid") {
+                // A solid's K ~ E h with h its cell size (about a fifth of the sphere: 20 mm).
+                spec.young_modulus_pa = k / 0.02;
               } else {
                 spec.stiffness = k;
               }
@@ -122,8 +130,15 @@ json run_stability(const Options& opt) {
                 rejected.push_back(cell);
                 continue;
               }
-              if (load.attach) sim->attach(tool, load.value, 30);
-              else sim->pull(tool, load.value);
+              double e_start = 0.0;
+              if (load.perturb_m > 0) {
+                sim->perturb(load.perturb_m, 1);
+                e_start = sim->energy();
+              } else if (load.attach) {
+                sim->attach(tool, load.value, 30);
+              } else {
+                sim->pull(tool, load.value);
+              }
               int64_t guard_actions = 0;
               bool finite = true;
               double e_late = 0.0, e_end = 0.0;
@@ -151,9 +166,14 @@ json run_stability(const Options& opt) {
               // Over the last quarter of the run: a load started from rest legitimately raises the energy
               // (polynomially in t: a factor below 2 over that quarter); an instability multiplies it.
               const double drift = finite ? (e_end - e_late) / std::max(std::abs(e_late), 1e-12) : NAN;
+              // Unloaded from a perturbed rest no work is done on the model: its energy may only
+              // fall, and nothing may move far beyond the perturbation (self-excitation: the
+              // NMSM drift of issue 13 moved vertices by millimetres).
+              const bool self_excited = load.perturb_m > 0 && finite &&
+                                        (e_end > 1.1 * e_start + 1e-15 || maxd > 100.0 * load.perturb_m);
               std::string outcome;
               if (!finite) outcome = "non-finite";
-              else if (drift > 10.0 || maxd > 1e3 * diameter) outcome = "diverged";  // numerical runaway
+              else if (drift > 10.0 || maxd > 1e3 * diameter || self_excited) outcome = "diverged";  // numerical runaway
               else if (guard_actions > 0) outcome = "guarded";
               else outcome = "stable";
               cell["outcome"] = outcome;

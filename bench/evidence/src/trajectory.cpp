@@ -30,12 +30,12 @@ Trajectory run_trajectory(Simulation& sim, const TriMesh& surface, const std::ve
     if (load.attach) {
       const std::array<double, 3> d = {s.reaction[0] - ref.reaction[0], s.reaction[1] - ref.reaction[1],
                                        s.reaction[2] - ref.reaction[2]};
-      s.force_error_pct = ref.valid ? 100.0 * norm3(d) / std::max(norm3(ref.reaction), 1e-300) : NAN;
-    } else {
-      // Paper 000 Table I: the feedback force at rest should balance the applied force.
-      const std::array<double, 3> d = {s.reaction[0] + load.value[0], s.reaction[1] + load.value[1],
-                                       s.reaction[2] + load.value[2]};
-      s.force_error_pct = 100.0 * norm3(d) / norm3(load.value);
+      const double offset = std::max(norm3(load.value), 1e-300);
+      s.grasp_stiffness_N_per_m = norm3(s.reaction) / offset;
+      if (ref.valid) {
+        s.force_error_pct = 100.0 * norm3(d) / std::max(norm3(ref.reaction), 1e-300);
+        s.grasp_stiffness_ratio = norm3(s.reaction) / std::max(norm3(ref.reaction), 1e-300);
+      }
     }
     s.finite = finite;
     s.converged = converged;

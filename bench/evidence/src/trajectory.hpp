@@ -2,11 +2,13 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <vector>
 
 #include "softatlas/evidence/evidence.hpp"
+#include "softatlas/sim/fem_quadratic.hpp"
 #include "softatlas/evidence/runner.hpp"
 #include "softatlas/evidence/scenario.hpp"
 
@@ -21,7 +23,11 @@ struct Reference {
 struct Snapshot {
   int64_t iterations = 0;
   double ms_per_step = 0.0;
-  double rms_mm = 0.0, max_mm = 0.0, volume_change_pct = 0.0, force_error_pct = 0.0;
+  double rms_mm = 0.0, max_mm = 0.0, volume_change_pct = 0.0;
+  // Attachments: the force on the tool against the reference's (%), and what the tool feels per
+  // metre, |reaction| / |offset|, against the reference's. Force loads: NaN (at rest the reaction
+  // balances the applied force by Newton's third law; it measures nothing).
+  double force_error_pct = NAN, grasp_stiffness_N_per_m = NAN, grasp_stiffness_ratio = NAN;
   std::array<double, 3> reaction{0, 0, 0};
   bool finite = true, converged = false;
   int64_t guard_actions = 0;
@@ -43,7 +49,7 @@ Trajectory run_trajectory(Simulation& sim, const TriMesh& surface, const std::ve
 
 // Parameter fitting against the FEM reference (paper 003 section 2.2): PSO and Nelder-Mead with
 // the same budget, trained on one load, tested on the others. Writes fit_convergence.svg.
-nlohmann::json fit_parameters(const Options& opt, const TriMesh& source, const sim::fem::Model& fmodel,
+nlohmann::json fit_parameters(const Options& opt, const TriMesh& source, const sim::fem::QuadraticModel& fmodel,
                               const std::vector<LoadCase>& loads, const std::vector<std::vector<double>>& ref_x,
                               const std::vector<std::array<double, 3>>& ref_reaction);
 

@@ -35,6 +35,10 @@ double recommended_dt_s(const SceneDesc& scene);
 std::string explain(const Model& model);
 
 State make_state(const Model& model);  // rest positions, zero velocity, every organ awake
+// Moves every free vertex, and every node of a solid organ's lattice, by `amplitude_m` in a
+// random direction (seeded, so reproducible): the "rest plus a perturbation" start that shows
+// whether a model drifts or self-excites with no load (bench restore, bench stability).
+void perturb(const Model& model, State& state, double amplitude_m, uint32_t seed);
 Work make_work(const Model& model);
 
 enum class StepStatus : int32_t {

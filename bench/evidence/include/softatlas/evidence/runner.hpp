@@ -1,9 +1,10 @@
-// One interface over every model the evidence compares: the core's mass-spring models
-// (tmsm, cmsm, nmsm, flexion; sim.hpp), the triangular tensor-mass model (tmm.hpp) and the
+// One interface over every model the evidence compares: the core's models (tmsm, cmsm, nmsm,
+// flexion, and the volumetric solid; sim.hpp), the triangular tensor-mass model (tmm.hpp) and the
 // tetrahedral FEM (fem.hpp). A virtual call per step, none per spring.
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -15,7 +16,7 @@ namespace softatlas::evidence {
 
 // Model and setting of one run. Names are those of results.json.
 struct ModelSpec {
-  std::string model = "nmsm";         // tmsm | cmsm | nmsm | nmsm_p2 | flexion | tmm | fem
+  std::string model = "nmsm";         // tmsm | cmsm | nmsm | nmsm_p2 | flexion | solid | tmm | fem
   std::string integrator = "semi_implicit";  // verlet | semi_implicit | implicit (tmm, fem: implicit)
   double dt_s = 1e-3;
   bool guard = true;
@@ -62,6 +63,9 @@ class Simulation {
   virtual void pull(const std::vector<int32_t>& verts, const std::array<double, 3>& force_N) = 0;
   virtual void attach(const std::vector<int32_t>& verts, const std::array<double, 3>& offset_m, int iterations) = 0;
   virtual void release() = 0;
+  // Moves every free vertex (node) by `amplitude_m` in a random direction (seeded): the start of
+  // the "unloaded perturbed rest" cells that catch self-excitation.
+  virtual void perturb(double amplitude_m, uint32_t seed) = 0;
   virtual StepOut step() = 0;
   virtual void positions(std::vector<double>& out) const = 0;  // #V*3 in surface order
   virtual double volume() const = 0;
