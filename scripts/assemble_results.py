@@ -4,7 +4,8 @@
 
 The template holds the text; these lines in it are replaced by generated content:
   @run@                       what was run, when, on which machine and commit
-  @accuracy:HEADING@          the section of accuracy/report.md whose "### " heading starts with HEADING
+  @accuracy:HEADING@          the section of accuracy/report.md whose "### " heading is HEADING or
+                              starts with HEADING and a space
   @stability@                 stability/report.md
 Every SVG of both runs is copied to docs/figures/. A marker that matches nothing is an error:
 the template and the generator must not drift apart silently.
@@ -70,11 +71,13 @@ def main(argv):
             out.append(stability)
         elif key.startswith("@accuracy:") and key.endswith("@"):
             prefix = key[len("@accuracy:"):-1]
-            hits = [v for k, v in accuracy.items() if k.startswith(prefix)]
+            hits = [v for k, v in accuracy.items() if k == prefix or k.startswith(prefix + " ")]
             if len(hits) != 1:
                 errors.append(f"{template_path}:{n}: {key} matches {len(hits)} sections of accuracy/report.md (expected 1)")
             else:
                 out.append(hits[0])
+        elif key.startswith("@") and key.endswith("@") and len(key) > 1:
+            errors.append(f"{template_path}:{n}: unknown marker {key} (expected @run@, @stability@ or @accuracy:HEADING@)")
         else:
             out.append(line + "\n")
     if errors:

@@ -8,19 +8,6 @@
 // decomposition of the deformation gradient F = Ds Dm^-1 (Mueller & Gross 2004).
 #include "softatlas/sim/fem.hpp"
 
-// GCC 12 reports false "may be used uninitialized" warnings inside Eigen's AVX-512 kernels
-// (-march=native); they are in the library headers, not in this file.
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#pragma GCC diagnostic ignored "-Wuninitialized"
-#endif
-#include <Eigen/Dense>
-#include <Eigen/Sparse>
-#include <Eigen/SparseCholesky>
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -29,18 +16,17 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "fem_common.hpp"
 #include "softatlas/sim/error.hpp"
 
 namespace softatlas::sim::fem {
 
 namespace {
 
-using Mat3 = Eigen::Matrix3d;
-using Vec3 = Eigen::Vector3d;
+using namespace detail;  // Mat3, Vec3, node(), box_size()
+
 using Mat12 = Eigen::Matrix<double, 12, 12>;
 using Vec12 = Eigen::Matrix<double, 12, 1>;
-
-Vec3 node(const std::vector<double>& x, int32_t i) { return Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]); }
 
 Mat3 dm_inv(const Model& m, int32_t t) {
   return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(&m.tet_dm_inv[9 * t]);
@@ -75,16 +61,6 @@ Vec12 rotated_displacement(const Model& m, int32_t t, const Mat3& R, const std::
   Vec12 u;
   for (int a = 0; a < 4; ++a) u.segment<3>(3 * a) = R.transpose() * node(x, n[a]) - node(m.rest, n[a]);
   return u;
-}
-
-double box_size(const std::vector<double>& x) {
-  if (x.empty()) return 1.0;
-  Vec3 lo = node(x, 0), hi = lo;
-  for (size_t i = 0; i < x.size() / 3; ++i) {
-    lo = lo.cwiseMin(node(x, static_cast<int32_t>(i)));
-    hi = hi.cwiseMax(node(x, static_cast<int32_t>(i)));
-  }
-  return std::max((hi - lo).norm(), 1e-300);
 }
 
 // Free-DOF numbering: -1 for prescribed DOFs.
@@ -470,6 +446,7 @@ StaticReport solve_static(const Model& m, const Load& load, std::vector<double>&
       ++rep.iterations;
       if (!linear && dx.lpNorm<Eigen::Infinity>() < opt.tolerance * size && it > 0) break;
     }
+    if (opt.on_increment) opt.on_increment(lam, x);
   }
   // Final residual.
   internal_forces(m, x, fint);

@@ -10,30 +10,20 @@
 //   dP[dF] = mu dF + (mu - lambda ln J) F^-T dF^T F^-T + lambda tr(F^-1 dF) F^-T.
 #include "softatlas/sim/fem_quadratic.hpp"
 
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#pragma GCC diagnostic ignored "-Wuninitialized"
-#endif
-#include <Eigen/Dense>
-#include <Eigen/Sparse>
-#include <Eigen/SparseCholesky>
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
 
+#include "fem_common.hpp"
 #include "softatlas/sim/error.hpp"
 
 namespace softatlas::sim::fem {
 
 namespace {
 
-using Mat3 = Eigen::Matrix3d;
-using Vec3 = Eigen::Vector3d;
+using namespace detail;  // Mat3, Vec3, node(), box_size()
+
 using Mat9 = Eigen::Matrix<double, 9, 9>;
 using Vec9 = Eigen::Matrix<double, 9, 1>;
 using Mat930 = Eigen::Matrix<double, 9, 30>;
@@ -50,8 +40,6 @@ Eigen::Vector4d quad_point(int q) {
   L[q] = kQa;
   return L;
 }
-
-Vec3 node(const std::vector<double>& x, int32_t i) { return Vec3(x[3 * i], x[3 * i + 1], x[3 * i + 2]); }
 
 // Gradients of L0..L3 in the rest frame (rows of Dm^-1 for L1..L3, L0 the negative sum).
 std::array<Vec3, 4> bary_gradients(const QuadraticModel& q, int32_t t) {
@@ -185,16 +173,6 @@ Mat30 element_tangent(const QuadraticModel& q, int32_t t, const std::vector<doub
     if (F.determinant() > 0.0) K.noalias() += w * B.transpose() * neo_hookean_tangent(q, F) * B;
   }
   return K;
-}
-
-double box_size(const std::vector<double>& x) {
-  if (x.empty()) return 1.0;
-  Vec3 lo = node(x, 0), hi = lo;
-  for (size_t i = 0; i < x.size() / 3; ++i) {
-    lo = lo.cwiseMin(node(x, static_cast<int32_t>(i)));
-    hi = hi.cwiseMax(node(x, static_cast<int32_t>(i)));
-  }
-  return std::max((hi - lo).norm(), 1e-300);
 }
 
 // Conjugate gradients on K x = b preconditioned by a factorisation M of a nearby (SPD) matrix:
@@ -463,6 +441,7 @@ StaticReport solve_static(const QuadraticModel& q, const Load& load, std::vector
       ++rep.iterations;
       if (prescribed_reached && dx.lpNorm<Eigen::Infinity>() * alpha * 2.0 < 1e-14 * size) break;
     }
+    if (opt.on_increment) opt.on_increment(lam, x);
   }
   Eigen::VectorXd r;
   rep.residual = residual(x, 1.0, r);

@@ -549,10 +549,10 @@ std::vector<SolidWork> make_solid_work(const Model& m) {
     reset_rotations(w.quat.data(), w.rot.data(), b.ntet);
     reset_rotations(w.cell_quat.data(), w.cell_rot.data(), b.ncell);
     w.f_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
+    w.r_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
     const size_t nv = static_cast<size_t>(m.organs[b.organ].vert_end - m.organs[b.organ].vert_begin);
     w.vol_p.assign(3 * nv, 0.0), w.vol_g.assign(3 * nv, 0.0), w.vol_gn.assign(n3 * b.npiece, 0.0),
         w.vol_u.assign(n3 * b.npiece, 0.0);
-    w.r_prev.assign(9 * static_cast<size_t>(b.ntet), 0.0);
   }
   // Organs to the step's worker threads (make_work() starts min(threads, organs) of them when
   // there are two or more): largest lattice first onto the least loaded, by tetrahedra.
@@ -654,6 +654,30 @@ void prepare_grasp(const SolidBody& b, SolidWork& w, const std::vector<int32_t>&
   w.vol_res.assign(3 * static_cast<size_t>(k) * b.npiece, 0.0);
 }
 
+// The held vertices' exact constraints on the columns of X (one row per lattice node): with C the
+// embedding rows of the held vertices, res = target - C X (no target: -C X), then
+// X += Z S^-1 res (Z = A^-1 C^T, S = C Z = Lc Lc^T, prepare_grasp). On return res holds the
+// multipliers S^-1 res (the solve's reaction). res: k x X.cols(), column-major scratch.
+template <class Nodes>
+void grasp_project(const SolidBody& b, const SolidWork& w, Nodes& X, Eigen::Map<Eigen::MatrixXd>& res,
+                   const double* target) {
+  const int32_t k = w.grasp_active;
+  for (int32_t j = 0; j < k; ++j) {
+    const int32_t v = w.grasp_verts[j];
+    const int32_t* nd = &b.tets[4 * b.embed_tet[v]];
+    for (Eigen::Index col = 0; col < X.cols(); ++col) {
+      double x = 0.0;
+      for (int i = 0; i < 4; ++i) x += b.embed_w[4 * v + i] * X(nd[i], col);
+      res(j, col) = (target ? target[3 * j + col] : 0.0) - x;
+    }
+  }
+  const Eigen::Map<const Eigen::MatrixXd> Z(w.grasp_z.data(), b.nnode, k);
+  const Eigen::Map<const Eigen::MatrixXd> Lc(w.grasp_chol.data(), k, k);
+  Lc.triangularView<Eigen::Lower>().solveInPlace(res);
+  Lc.transpose().triangularView<Eigen::Upper>().solveInPlace(res);
+  X.noalias() += Z * res;
+}
+
 // The enclosed volume of each closed piece of the organ's surface as an exact constraint of the
 // step (003 eq 25 to 003 eq 30 on the embedded surface, C_p = V_p(q) - V_p0 with the node gradients
 // G of embedded_volume): the step's minimiser moved within span(U), U = A^-1 G (A the step's
@@ -683,23 +707,9 @@ void keep_volume(const Model& m, const SolidBody& b, SolidWork& w) {
     for (Eigen::Index i = 0; i < n; ++i)
       for (int c = 0; c < 3; ++c) U(i, 3 * p + c) = w.vol_gn[(p * n + i) * 3 + c];
   U = b.factor->ldlt.solve(U);
-  const int32_t k = w.grasp_active;
-  if (k > 0) {
-    Eigen::Map<Eigen::MatrixXd> res(w.vol_res.data(), k, 3 * P);
-    for (int32_t j = 0; j < k; ++j) {
-      const int32_t v = w.grasp_verts[j];
-      const int32_t* nd = &b.tets[4 * b.embed_tet[v]];
-      for (int col = 0; col < 3 * P; ++col) {
-        double x = 0.0;
-        for (int i = 0; i < 4; ++i) x += b.embed_w[4 * v + i] * U(nd[i], col);
-        res(j, col) = -x;
-      }
-    }
-    const Eigen::Map<const Eigen::MatrixXd> Z(w.grasp_z.data(), n, k);
-    const Eigen::Map<const Eigen::MatrixXd> Lc(w.grasp_chol.data(), k, k);
-    Lc.triangularView<Eigen::Lower>().solveInPlace(res);
-    Lc.transpose().triangularView<Eigen::Upper>().solveInPlace(res);
-    U.noalias() += Z * res;
+  if (w.grasp_active > 0) {  // U leaves the held vertices where they are
+    Eigen::Map<Eigen::MatrixXd> res(w.vol_res.data(), w.grasp_active, 3 * P);
+    grasp_project(b, w, U, res, nullptr);
   }
   using Small = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxVolumePieces, kMaxVolumePieces>;
   using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxVolumePieces, 1>;
@@ -755,8 +765,6 @@ void solve_body(const Model& m, const SolidBody& b, SolidWork& w, State& s) {
   }
   const double inv_h2 = 1.0 / (h * h);
   Eigen::Map<ColMatX3> sol(w.sol.data(), b.nnode, 3);
-  const Eigen::Map<const Eigen::MatrixXd> Z(w.grasp_z.data(), b.nnode, k);
-  const Eigen::Map<const Eigen::MatrixXd> Lc(w.grasp_chol.data(), k, k);
   for (int it = 0; it < b.iterations; ++it) {
     // local step: the constraint projections, summed into the right-hand side (column-major)
     for (int32_t i = 0; i < b.nnode; ++i)
@@ -781,19 +789,8 @@ void solve_body(const Model& m, const SolidBody& b, SolidWork& w, State& s) {
     // global step: one prefactored solve, then the held vertices' exact constraints
     sol = b.factor->ldlt.solve(sol);
     if (k > 0) {
-      Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> res(w.grasp_rhs.data(), k, 3);
-      for (int32_t j = 0; j < k; ++j) {
-        const int32_t v = w.grasp_verts[j];
-        const int32_t* n = &b.tets[4 * b.embed_tet[v]];
-        for (int c = 0; c < 3; ++c) {
-          double p = 0.0;
-          for (int i = 0; i < 4; ++i) p += b.embed_w[4 * v + i] * sol(n[i], c);
-          res(j, c) = w.grasp_target[3 * j + c] - p;
-        }
-      }
-      const Eigen::Matrix<double, Eigen::Dynamic, 3> lam =
-          Lc.transpose().triangularView<Eigen::Upper>().solve(Lc.triangularView<Eigen::Lower>().solve(res));
-      sol.noalias() += Z * lam;
+      Eigen::Map<Eigen::MatrixXd> lam(w.grasp_rhs.data(), k, 3);
+      grasp_project(b, w, sol, lam, w.grasp_target.data());
       if (it + 1 == b.iterations)
         for (int32_t j = 0; j < k; ++j)
           for (int c = 0; c < 3; ++c) w.grasp_lambda[3 * j + c] = lam(j, c), w.out_reaction[c] -= lam(j, c);
@@ -947,22 +944,24 @@ void solid_restore_volume(const Model& m, const SolidBody& b, SolidWork& w, Stat
   embedded_volume(m, b, X, w.vol_p, w.vol_g, w.vol_gn, C);
   const size_t n3 = 3 * static_cast<size_t>(b.nnode);
   const double inv_h = 1.0 / m.dt_s, cap = kVolumeStep * b.spacing_m;
+  auto moved_by_contact = [&](int32_t i) { return node_acc[4 * static_cast<size_t>(b.node_begin + i) + 3] > 0; };
   for (int32_t p = 0; p < b.npiece; ++p) {
     const double c = volume_excess(C[p], b.piece_rest_volume[p]);
     const double* G = w.vol_gn.data() + p * n3;
-    double denom = 0.0, step2 = 0.0;
-    for (int32_t i = 0; i < b.nnode; ++i)
-      if (!(node_acc[4 * static_cast<size_t>(b.node_begin + i) + 3] > 0))
-        denom += (G[3 * i] * G[3 * i] + G[3 * i + 1] * G[3 * i + 1] + G[3 * i + 2] * G[3 * i + 2]) / b.mass[i];
+    // One pass: the denominator sum |G_i|^2 / m_i and the largest |G_i|^2 / m_i^2 (the step cap).
+    double denom = 0.0, g2m2 = 0.0;
+    for (int32_t i = 0; i < b.nnode; ++i) {
+      if (moved_by_contact(i)) continue;
+      const double g2 = G[3 * i] * G[3 * i] + G[3 * i + 1] * G[3 * i + 1] + G[3 * i + 2] * G[3 * i + 2];
+      denom += g2 / b.mass[i];
+      g2m2 = std::max(g2m2, g2 / (b.mass[i] * b.mass[i]));
+    }
     if (!(denom > 0.0) || !std::isfinite(c)) continue;
     double lambda = c / denom;
-    for (int32_t i = 0; i < b.nnode; ++i)
-      if (!(node_acc[4 * static_cast<size_t>(b.node_begin + i) + 3] > 0))
-        step2 = std::max(step2, lambda * lambda * (G[3 * i] * G[3 * i] + G[3 * i + 1] * G[3 * i + 1] + G[3 * i + 2] * G[3 * i + 2]) /
-                                    (b.mass[i] * b.mass[i]));
+    const double step2 = lambda * lambda * g2m2;
     if (step2 > cap * cap) lambda *= cap / std::sqrt(step2);
     for (int32_t i = 0; i < b.nnode; ++i) {
-      if (node_acc[4 * static_cast<size_t>(b.node_begin + i) + 3] > 0) continue;
+      if (moved_by_contact(i)) continue;
       for (int k = 0; k < 3; ++k) {
         const double d = -lambda * G[3 * i + k] / b.mass[i];
         X[3 * i + k] += d, Vn[3 * i + k] += d * inv_h;

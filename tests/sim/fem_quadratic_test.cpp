@@ -182,9 +182,20 @@ TEST(FemQuadratic, LargePullConvergesQuadratically) {
   opt.load_steps = 4;
   opt.max_iterations = 30;
   opt.tolerance = 1e-10;
+  std::vector<double> fractions, pulls;  // the quasi-static path, one state per increment
+  std::vector<double> last;
+  opt.on_increment = [&](double f, const std::vector<double>& xs) {
+    fractions.push_back(f);
+    pulls.push_back(-fem::reaction_force(q, xs, fem::quadratic_region(q, far))[0]);
+    last = xs;
+  };
   const fem::StaticReport rep = fem::solve_static(q, load, x, opt);
   EXPECT_TRUE(rep.converged) << "residual " << rep.residual;
   EXPECT_LE(rep.iterations, 4 * 8);
+  ASSERT_EQ(fractions.size(), 4u);
+  for (int s = 0; s < 4; ++s) EXPECT_DOUBLE_EQ(fractions[s], (s + 1) / 4.0);
+  for (int s = 1; s < 4; ++s) EXPECT_GT(pulls[s], pulls[s - 1]);  // the force grows along the path
+  EXPECT_EQ(last, x);
   EXPECT_TRUE(std::isfinite(fem::elastic_energy(q, x)));  // nothing inverted
   // Nearly incompressible: the volume of the corner mesh changes by little under a 50 % stretch.
   const double v0 = fem::deformed_volume(q, q.rest), v1 = fem::deformed_volume(q, x);

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <type_traits>
 
 #include "softatlas/evidence/evidence.hpp"
 #include "softatlas/evidence/svg.hpp"
@@ -85,23 +86,43 @@ struct FemSolution {
   int iterations = 0;
   double residual = 0.0;
   bool converged = false;
+  std::vector<PathPoint> path;  // the state after each load increment (the last is x)
 };
 
-FemSolution solve_reference(const fem::Model& model, const fem::TetMesh& mesh, const LoadCase& load,
+// The nodes of a region given by its corners: the corners themselves for linear tetrahedra,
+// with the edge nodes between them for quadratic ones.
+std::vector<int32_t> region_nodes(const fem::Model&, const std::vector<int32_t>& corners) { return corners; }
+std::vector<int32_t> region_nodes(const fem::QuadraticModel& q, const std::vector<int32_t>& corners) {
+  return fem::quadratic_region(q, corners);
+}
+
+// A static solve of the liver (the reference, or a coarse linear FEM as a model): support and
+// tool region as the surface models have them, a force spread over the tool region's nodes.
+// Linear corotational: 10 load increments for attachments (the approximate-tangent Newton, no
+// derivative of R, stays in its convergence basin), tolerance 1e-6. Quadratic: increments of at
+// most 5 mm, tolerance 1e-9 (Newton with the consistent tangent).
+template <class FemModel>
+FemSolution solve_reference(const FemModel& model, const fem::TetMesh& mesh, const LoadCase& load,
                             const std::array<double, 3>& top) {
+  constexpr bool quadratic = std::is_same_v<FemModel, fem::QuadraticModel>;
   FemSolution s;
   fem::Load l = fem::make_load(model);
-  fem::fix_nodes(l, fem_support(mesh), {0, 0, 0});
-  const std::vector<int32_t> tool = fem_tool_nodes(mesh, top);
+  fem::fix_nodes(l, region_nodes(model, fem_support(mesh)), {0, 0, 0});
+  const std::vector<int32_t> tool = region_nodes(model, fem_tool_nodes(mesh, top));
   if (load.attach) fem::fix_nodes(l, tool, load.value);
   else fem::add_force(l, tool, load.value);
   s.x = model.rest;
   fem::StaticOptions opt;
-  // Large pulls rotate elements a lot; small increments keep the approximate-tangent Newton
-  // (no derivative of R) within its convergence basin.
-  opt.load_steps = load.attach ? 10 : 1;
-  opt.max_iterations = 100;
-  opt.tolerance = 1e-6;
+  if (quadratic) {
+    opt.load_steps = load.attach ? std::max(1, static_cast<int>(std::ceil(norm3(load.value) / 0.005))) : 1;
+    opt.max_iterations = 30;
+    opt.tolerance = 1e-9;
+  } else {
+    opt.load_steps = load.attach ? 10 : 1;
+    opt.max_iterations = 100;
+    opt.tolerance = 1e-6;
+  }
+  opt.on_increment = [&s](double fraction, const std::vector<double>& x) { s.path.push_back({fraction, x}); };
   const auto t0 = std::chrono::steady_clock::now();
   const fem::StaticReport rep = fem::solve_static(model, l, s.x, opt);
   s.seconds = seconds_since(t0);
@@ -109,31 +130,6 @@ FemSolution solve_reference(const fem::Model& model, const fem::TetMesh& mesh, c
   s.converged = rep.converged;
   s.residual = rep.residual;
   s.reaction = fem::reaction_force(model, s.x, tool);
-  return s;
-}
-
-// The reference: the same support and tool region, their edge nodes included; a force spread
-// over the tool region's nodes; prescribed displacements in increments of at most 5 mm.
-FemSolution solve_reference(const fem::QuadraticModel& q, const fem::TetMesh& mesh, const LoadCase& load,
-                            const std::array<double, 3>& top) {
-  FemSolution s;
-  fem::Load l = fem::make_load(q);
-  fem::fix_nodes(l, fem::quadratic_region(q, fem_support(mesh)), {0, 0, 0});
-  const std::vector<int32_t> tool = fem::quadratic_region(q, fem_tool_nodes(mesh, top));
-  if (load.attach) fem::fix_nodes(l, tool, load.value);
-  else fem::add_force(l, tool, load.value);
-  s.x = q.rest;
-  fem::StaticOptions opt;
-  opt.load_steps = load.attach ? std::max(1, static_cast<int>(std::ceil(norm3(load.value) / 0.005))) : 1;
-  opt.max_iterations = 30;
-  opt.tolerance = 1e-9;
-  const auto t0 = std::chrono::steady_clock::now();
-  const fem::StaticReport rep = fem::solve_static(q, l, s.x, opt);
-  s.seconds = seconds_since(t0);
-  s.iterations = rep.iterations;
-  s.converged = rep.converged;
-  s.residual = rep.residual;
-  s.reaction = fem::reaction_force(q, s.x, tool);
   return s;
 }
 
@@ -158,6 +154,7 @@ std::vector<int> face_counts(Grid g) {
 
 struct Combo {
   std::string model, integrator;
+  double dt_s = 1e-3;  // 1 kHz, the haptic rate; the solid model also at its own step (8 ms)
 };
 std::vector<Combo> combos(Grid g) {
   std::vector<Combo> out;
@@ -169,6 +166,7 @@ std::vector<Combo> combos(Grid g) {
     for (const auto& i : integ) out.push_back({m, i});
   out.push_back({"tmm", "implicit"});
   out.push_back({"solid", "implicit"});  // the atlas default (sim/solid.hpp): its own local/global solver
+  out.push_back({"solid", "implicit", 8e-3});  // ... at the step the atlas runs it with (kSolidStep_s)
   return out;
 }
 
@@ -201,9 +199,10 @@ std::string integrator_marker(const std::string& i) {
 }
 
 // One scatter plot of a run metric against ms per step, one series per model x integrator, the
-// Pareto front of the whole cloud drawn as a dashed line.
+// Pareto front of the whole cloud drawn as a dashed line; for a ratio to the reference (`ratio`:
+// 1 is right, neither direction is better) the line y = 1 instead.
 std::string metric_plot(const json& runs, const std::string& metric, const std::string& label,
-                        const std::string& title, const std::string& load_filter, bool logy) {
+                        const std::string& title, const std::string& load_filter, bool logy, bool ratio = false) {
   svg::Plot p;
   p.title = title;
   p.xlabel = "ms per step (log)";
@@ -215,7 +214,7 @@ std::string metric_plot(const json& runs, const std::string& metric, const std::
   for (const auto& r : runs) {
     if (!load_filter.empty() && r["load"] != load_filter) continue;
     if (!r.contains(metric) || !r[metric].is_number()) continue;
-    const std::string key = r["model"].get<std::string>() + " / " + r["integrator"].get<std::string>();
+    const std::string key = r["model"].get<std::string>() + " / " + integrator_label(r);
     auto& s = series[key];
     if (s.name.empty()) {
       s.name = key;
@@ -230,14 +229,19 @@ std::string metric_plot(const json& runs, const std::string& metric, const std::
   }
   for (auto& kv : series) p.series.push_back(kv.second);
   svg::Series front;
-  front.name = "Pareto front";
+  front.name = ratio ? "reference (1)" : "Pareto front";
   front.color = "#222222";
   front.marker = "none";
   front.line = true;
   front.dashed = true;
-  for (size_t i : pareto(ax, ay)) {
-    front.x.push_back(ax[i]);
-    front.y.push_back(ay[i]);
+  if (ratio && !ax.empty()) {
+    front.x = {*std::min_element(ax.begin(), ax.end()), *std::max_element(ax.begin(), ax.end())};
+    front.y = {1.0, 1.0};
+  } else if (!ratio) {
+    for (size_t i : pareto(ax, ay)) {
+      front.x.push_back(ax[i]);
+      front.y.push_back(ay[i]);
+    }
   }
   p.series.push_back(front);
   return svg::render(p);
@@ -451,7 +455,7 @@ json run_accuracy(const Options& opt) {
         // grid runs it once (as semi_implicit) to save time.
         if (opt.grid == Grid::full && nf > 2000 && c.integrator == "verlet") continue;
         ModelSpec spec = paper_spec(c.model, c.integrator, nf);
-        spec.dt_s = dt;
+        spec.dt_s = c.dt_s;
         std::unique_ptr<Simulation> sim;
         try {
           sim = make_surface_simulation(surface, fixed, spec);
@@ -459,11 +463,11 @@ json run_accuracy(const Options& opt) {
           std::fprintf(stderr, "accuracy: %s/%s at %d faces rejected: %s\n", c.model.c_str(), c.integrator.c_str(), nf, e.what());
           continue;
         }
-        const Trajectory tr = run_trajectory(*sim, surface, tool, load, ref, dt, snap_steps, max_steps, accel_tol, restoration);
+        const Trajectory tr = run_trajectory(*sim, surface, tool, load, ref, c.dt_s, snap_steps, max_steps, accel_tol, restoration);
         for (size_t k = 0; k < tr.snaps.size(); ++k) {
           const Snapshot& s = tr.snaps[k];
           json r = {{"model", c.model}, {"integrator", c.integrator}, {"faces", surface.nface()},
-                    {"vertices", surface.nvert()}, {"load", load.name}, {"dt_s", dt}, {"iterations", s.iterations},
+                    {"vertices", surface.nvert()}, {"load", load.name}, {"dt_s", c.dt_s}, {"iterations", s.iterations},
                     {"converged", s.converged}, {"final", k + 1 == tr.snaps.size()}, {"ms_per_step", s.ms_per_step},
                     {"rms_error_mm", s.rms_mm}, {"max_error_mm", s.max_mm}, {"volume_change_pct", s.volume_change_pct},
                     {"reaction_N", s.reaction}, {"finite", s.finite},
@@ -478,9 +482,10 @@ json run_accuracy(const Options& opt) {
           runs.push_back(r);
         }
         const Snapshot& last = tr.snaps.back();
-        std::fprintf(stderr, "  %5d faces %-10s %-8s %-14s it %6lld  %.4f ms/step  rms %.3f mm  vol %+.2f%%  force %.1f%%\n",
-                     nf, load.name.c_str(), c.model.c_str(), c.integrator.c_str(), static_cast<long long>(last.iterations),
-                     last.ms_per_step, last.rms_mm, last.volume_change_pct, last.force_error_pct);
+        std::fprintf(stderr, "  %5d faces %-10s %-8s %-14s dt %g ms  it %6lld  %.4f ms/step  rms %.3f mm  vol %+.2f%%  force %.1f%%\n",
+                     nf, load.name.c_str(), c.model.c_str(), c.integrator.c_str(), 1e3 * c.dt_s,
+                     static_cast<long long>(last.iterations), last.ms_per_step, last.rms_mm, last.volume_change_pct,
+                     last.force_error_pct);
       }
     }
   }
@@ -565,20 +570,27 @@ json run_accuracy(const Options& opt) {
 
   if (opt.fit && opt.grid != Grid::tiny) {
     std::vector<std::vector<double>> rx;
-    std::vector<std::array<double, 3>> rr;
-    for (const auto& s : fem_ref) rx.push_back(s.x), rr.push_back(s.reaction);
-    result["fitting"] = fit_parameters(opt, source, fmodel, loads, rx, rr);
+    size_t train = 0;  // paper 000 Table II's attachment; its quasi-static path is the training data
+    for (size_t i = 0; i < loads.size(); ++i) {
+      rx.push_back(fem_ref[i].x);
+      if (loads[i].name == "attach_20") train = i;
+    }
+    result["fitting"] = fit_parameters(opt, source, fmodel, loads, rx, train, fem_ref[train].path);
   }
   if (opt.paper_tables && opt.grid != Grid::tiny) result["paper_tables"] = paper_tables(opt, source);
 
   // ---- plots ----
   const std::string main_load = opt.grid == Grid::tiny ? loads[0].name : "attach_30";
-  const std::string load_pick = std::any_of(loads.begin(), loads.end(), [&](const LoadCase& l) { return l.name == main_load; })
-                                    ? main_load : loads[0].name;
+  // The plots show one attachment (the grasp stiffness exists only there): attach_30 on the full
+  // grid, else the first attachment of the grid.
+  std::string load_pick = loads[0].name;
+  for (auto it = loads.rbegin(); it != loads.rend(); ++it)
+    if (it->attach || it->name == main_load) load_pick = it->name;
+  if (std::any_of(loads.begin(), loads.end(), [&](const LoadCase& l) { return l.name == main_load; })) load_pick = main_load;
   std::vector<std::string> plots;
   auto plot = [&](const std::string& file, const std::string& metric, const std::string& label, const std::string& title,
-                  const std::string& load, bool logy) {
-    write_file_atomic(opt.out_dir + "/" + file, metric_plot(runs, metric, label, title, load, logy));
+                  const std::string& load, bool logy, bool ratio = false) {
+    write_file_atomic(opt.out_dir + "/" + file, metric_plot(runs, metric, label, title, load, logy, ratio));
     plots.push_back(file);
   };
   plot("rms_error_vs_time.svg", "rms_error_mm", "RMS position error vs FEM (mm, log)",
@@ -588,7 +600,7 @@ json run_accuracy(const Options& opt) {
   plot("volume_change_vs_time.svg", "volume_change_pct", "|volume change| (%, log)",
        "Volume change against run time, load " + load_pick, load_pick, true);
   plot("grasp_stiffness_vs_time.svg", "grasp_stiffness_ratio", "grasp stiffness / reference's (log)",
-       "Grasp stiffness against run time, load " + load_pick, load_pick, true);
+       "Grasp stiffness against run time, load " + load_pick, load_pick, true, true);
   plot("restoration_vs_time.svg", "restoration_mean_mm", "mean restoration error after release (mm, log)",
        "Shape restoration (paper 003 Table 1) against run time", "", true);
   plot("rms_error_vs_time_all_loads.svg", "rms_error_mm", "RMS position error vs FEM (mm, log)",

@@ -47,10 +47,19 @@ Trajectory run_trajectory(Simulation& sim, const TriMesh& surface, const std::ve
                           const std::vector<int64_t>& snap_steps, int64_t max_steps, double accel_tol,
                           bool restoration);
 
+// One state of the reference along a load's quasi-static path: the load fraction (0, 1] and the
+// FEM node positions there (one per Newton increment of the reference solve).
+struct PathPoint {
+  double fraction = 1.0;
+  std::vector<double> x;
+};
+
 // Parameter fitting against the FEM reference (paper 003 section 2.2): PSO and Nelder-Mead with
-// the same budget, trained on one load, tested on the others. Writes fit_convergence.svg.
+// the same budget, trained on the quasi-static path of one attachment (`train_path`, the
+// reference's increments of loads[train]), tested at rest on every load (`ref_x`: the reference's
+// final node positions, one per load). Writes fit_convergence.svg.
 nlohmann::json fit_parameters(const Options& opt, const TriMesh& source, const sim::fem::QuadraticModel& fmodel,
                               const std::vector<LoadCase>& loads, const std::vector<std::vector<double>>& ref_x,
-                              const std::vector<std::array<double, 3>>& ref_reaction);
+                              size_t train, const std::vector<PathPoint>& train_path);
 
 }  // namespace softatlas::evidence

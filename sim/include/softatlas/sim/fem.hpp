@@ -14,6 +14,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -97,6 +98,9 @@ struct StaticOptions {
   int load_steps = 1;           // corotational: apply the load in this many equal increments
   int max_iterations = 60;      // Newton iterations per increment
   double tolerance = 1e-9;      // |residual| / (|load| + tiny) and |dx| / size
+  // Called after each increment with its load fraction (s / load_steps) and the positions: the
+  // quasi-static load path, for comparisons along it rather than at its end only.
+  std::function<void(double fraction, const std::vector<double>& x)> on_increment;
 };
 struct StaticReport {
   int iterations = 0;

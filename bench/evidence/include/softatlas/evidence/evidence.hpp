@@ -33,6 +33,10 @@ nlohmann::json run_stability(const Options& options);
 // Paper 000 Tables I, II, III and the sphere test with the paper's settings.
 nlohmann::json paper_tables(const Options& options, const TriMesh& liver_source);
 
+// A run's integrator as tables and plots name it: "implicit", or "implicit, dt 8 ms" when the
+// run's step is not the sweep's 1 ms.
+std::string integrator_label(const nlohmann::json& run);
+
 // Markdown tables of a results.json (accuracy / stability), written beside it as report.md.
 std::string accuracy_markdown(const nlohmann::json& results);
 std::string stability_markdown(const nlohmann::json& results);
