@@ -361,11 +361,7 @@ Model compile(const TetMesh& mesh, const Material& material) {
 }
 
 Load make_load(const Model& model) {
-  Load l;
-  l.force.assign(3 * static_cast<size_t>(model.nnode), 0.0);
-  l.dof_fixed.assign(3 * static_cast<size_t>(model.nnode), 0);
-  l.dof_disp.assign(3 * static_cast<size_t>(model.nnode), 0.0);
-  return l;
+  return empty_load(model.nnode);
 }
 
 void fix_nodes(Load& load, const std::vector<int32_t>& nodes, const std::array<double, 3>& disp_m) {
@@ -505,10 +501,7 @@ std::array<double, 3> reaction_force(const Model& m, const std::vector<double>& 
                                      const std::vector<int32_t>& nodes) {
   std::vector<double> f;
   internal_forces(m, x, f);
-  std::array<double, 3> r{0, 0, 0};
-  for (int32_t n : nodes)
-    for (int c = 0; c < 3; ++c) r[c] += f[3 * n + c];
-  return r;
+  return node_sum(f, nodes);
 }
 
 double energy(const Model& m, const std::vector<double>& x, const std::vector<double>& v) {

@@ -261,11 +261,7 @@ std::vector<int32_t> quadratic_region(const QuadraticModel& q, const std::vector
 }
 
 Load make_load(const QuadraticModel& q) {
-  Load l;
-  l.force.assign(3 * static_cast<size_t>(q.nnode), 0.0);
-  l.dof_fixed.assign(3 * static_cast<size_t>(q.nnode), 0);
-  l.dof_disp.assign(3 * static_cast<size_t>(q.nnode), 0.0);
-  return l;
+  return empty_load(q.nnode);
 }
 
 void add_traction(const QuadraticModel& q, Load& load, const std::vector<int32_t>& faces,
@@ -453,10 +449,7 @@ std::array<double, 3> reaction_force(const QuadraticModel& q, const std::vector<
                                      const std::vector<int32_t>& nodes) {
   std::vector<double> f;
   internal_forces(q, x, f);
-  std::array<double, 3> r{0, 0, 0};
-  for (int32_t n : nodes)
-    for (int c = 0; c < 3; ++c) r[c] += f[3 * n + c];
-  return r;
+  return node_sum(f, nodes);
 }
 
 void interpolate(const QuadraticModel& q, const Embedding& emb, const std::vector<double>& x,
