@@ -835,6 +835,10 @@ void check_dicom_lengths(const fs::path& f) {
   const std::string where = f.string();
   size_t pos = 0;
   if (d.size() >= 132 && d.compare(128, 4, "DICM") == 0) pos = 132;
+  // Part 10: the file meta group follows "DICM" (GDCM asserts in Reader::InternalReadCommon on a
+  // file that ends there).
+  if (pos == 132 && (d.size() < 136 || d.compare(132, 2, std::string("\x02\x00", 2)) != 0))
+    throw InputError(where, "DICOM file: no file meta information (group 0002) after the 'DICM' prefix at byte 128");
   auto u16 = [&](size_t o) { return static_cast<uint32_t>(static_cast<unsigned char>(d[o]) | (static_cast<unsigned char>(d[o + 1]) << 8)); };
   auto u32 = [&](size_t o) { return u16(o) | (u16(o + 2) << 16); };
   bool explicit_vr = pos == 132;  // group 0002 is always explicit VR little endian
