@@ -20,11 +20,15 @@ struct SolidFactor {
 
 struct SolidBody;
 
-// The exact constraints of holding organ-local vertices `local` (each embedded in a tetrahedron):
-// Z = A^-1 C^T (#nnode x k) and the lower Cholesky factor L of S = C Z, S regularised by 1e-10 of
-// its largest diagonal entry (more held vertices than free nodes make S singular; with
-// consistent targets the multipliers' sum stays exact). False if S could not be factorised.
-// Used by the step (solid_step.cpp) and the haptic linearisation (solid_hold.cpp).
-bool grasp_schur(const SolidBody& body, const std::vector<int32_t>& local, Eigen::MatrixXd& Z, Eigen::MatrixXd& L);
+// The rows of a hold on organ-local vertices `local` (each embedded in a tetrahedron): one per
+// lattice tetrahedron that holds some of them, constraining their mean position. row[j] is vertex
+// j's row, share[j] = 1 / (vertices in that row).
+GraspRows grasp_rows(const SolidBody& body, const std::vector<int32_t>& local);
+// The exact constraints of those rows: Z = A^-1 C^T (#nnode x rows) and the lower Cholesky factor
+// L of S = C Z, S regularised by 1e-10 of its largest diagonal entry (more rows than free nodes
+// make S singular; with consistent targets the multipliers' sum stays exact). False if S could not
+// be factorised. Used by the step (solid_step.cpp) and the haptic linearisation (solid_hold.cpp).
+bool grasp_schur(const SolidBody& body, const std::vector<int32_t>& local, const GraspRows& rows, Eigen::MatrixXd& Z,
+                 Eigen::MatrixXd& L);
 
 }  // namespace softatlas::sim

@@ -1,6 +1,7 @@
 // The one-step stiffness of a hold on a solid organ, for the haptic coupling's local model
-// (atlas_app virtual_coupling.hpp). The solid step solves A x = b + C^T lambda with C x = t for
-// the held vertices' targets t (solid_step.cpp, the exact constraints): lambda = S^-1 (t - C A^-1 b)
+// (atlas_app virtual_coupling.hpp). The solid step solves A x = b + C^T lambda with C x = t, one
+// row per lattice tetrahedron holding grasped vertices, on their mean, and t the mean of their
+// targets (solid_step.cpp grasp_rows, the exact constraints): lambda = S^-1 (t - C A^-1 b)
 // with S = C A^-1 C^T, and the tool's reaction is -sum_j lambda_j. Moving every target by the same
 // offset d changes the reaction by -(1^T S^-1 1) d: one scalar for x, y and z, since A acts alike
 // on the three (the prefactored matrix holds inertia M/h^2, the elastic weights and the Rayleigh
@@ -37,7 +38,8 @@ double solid_hold_stiffness(const Model& m, const Work& w, const std::vector<int
       if (v >= 0 && v < m.nvert && m.vert_organ[v] == b.organ && b.embed_tet[v - r.vert_begin] >= 0)
         local.push_back(v - r.vert_begin);
     if (local.empty()) continue;
-    const int32_t k = static_cast<int32_t>(local.size());
+    const GraspRows rows = grasp_rows(b, local);
+    const int32_t k = rows.rows;
     if (bi < w.solid.size() && w.solid[bi].grasp_verts == local &&
         w.solid[bi].grasp_chol.size() == static_cast<size_t>(k) * k) {
       total += ones_quadratic(w.solid[bi].grasp_chol.data(), k);  // the step's own factor
@@ -45,7 +47,7 @@ double solid_hold_stiffness(const Model& m, const Work& w, const std::vector<int
     }
     // Not held yet (a probe's patch before the touch): the step's Schur complement, built here.
     Eigen::MatrixXd Z, L;
-    if (!grasp_schur(b, local, Z, L)) continue;
+    if (!grasp_schur(b, local, rows, Z, L)) continue;
     total += ones_quadratic(L.data(), k);
   }
   return std::isfinite(total) ? total : 0.0;

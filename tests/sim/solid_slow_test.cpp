@@ -94,12 +94,14 @@ TEST(SolidModel, GraspStiffnessMatchesTheFemReference) {
                 "%.1f N/m (12 mm cells); solid / reference %.2f\n",
                 1e3 * disp[0], 1e3 * disp[1], 1e3 * disp[2], m.solids[0].nnode, k_solid, k_ref, ref_nodes, k_ref_coarse,
                 k_solid / k_ref);
-    EXPECT_GT(k_solid, 0.5 * k_ref);
-    // Measured against this reference (8 mm cells: 41.6 / 24.4 N/m; 12 mm: 39.8 / 24.0): 2.86x / 2.63x
-    // with the default budget (386 nodes), 2.2x / 2.1x at 931 nodes, 1.6x / 1.5x at 2947 nodes; with
-    // nu = 0.3 instead of 0.49 at 386 nodes still 2.5x: the excess is the coarse lattice (linear
-    // tetrahedra in bending, the grasp spread over whole cells), not volumetric locking.
-    EXPECT_LT(k_solid, 3.0 * k_ref);
+    // Measured against this reference (8 mm cells: 41.6 / 24.4 N/m; 12 mm: 39.8 / 24.0) with the
+    // default budget (386 nodes), the grasp one constraint per lattice tetrahedron on the mean of
+    // its held vertices: 2.38x / 2.39x. One constraint per held vertex: 2.86x / 2.63x (it fixed
+    // every cell the patch touches); one on the whole patch's mean: 1.88x / 1.87x, but the thin
+    // pancreas then came back too slowly (bench restore residual 1.10 mm). The rest is the coarse
+    // lattice (docs/physics.md).
+    EXPECT_GT(k_solid, 0.8 * k_ref);
+    EXPECT_LT(k_solid, 2.7 * k_ref);
   }
 }
 

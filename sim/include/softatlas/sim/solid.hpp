@@ -17,9 +17,10 @@
 //              rotated frame so that rigid motion is not damped
 //   step       implicit Euler as a minimisation (Liu et al. 2013, Bouaziz et al. 2014): a few
 //              local (rotation fits) / global (one prefactored sparse solve, Eigen SimplicialLDLT)
-//              iterations; fixed vertices are stiff zero-length anchors in the matrix; vertices the
-//              tool holds are exact constraints through a Schur complement on the prefactored
-//              matrix, whose multipliers are the tool's reaction force (solid_step.cpp)
+//              iterations; fixed vertices are stiff zero-length anchors in the matrix; the vertices the
+//              tool holds are exact constraints, one per lattice tetrahedron on their mean, through a
+//              Schur complement on the prefactored matrix, whose multipliers are the tool's
+//              reaction force (solid_step.cpp)
 //
 // Units SI. Everything allocated by compile_solids() and make_solid_work(); solid_step() does not
 // allocate except the first time the tool grasps a new set of vertices of a solid organ.
@@ -58,6 +59,14 @@ struct Work;
 struct SceneDesc;
 
 struct SolidFactor;  // the prefactored system matrix (Eigen, solid_step.cpp)
+
+// The constraint rows of a hold (solid_factor.hpp grasp_rows): one per lattice tetrahedron holding
+// grasped vertices, on their mean position.
+struct GraspRows {
+  int32_t rows = 0;
+  std::vector<int32_t> row;   // per held vertex: its row
+  std::vector<double> share;  // per held vertex: 1 / (held vertices of its row)
+};
 
 // One compiled solid organ.
 struct SolidBody {
@@ -106,11 +115,12 @@ struct SolidWork {
   // block then y then z), the gradients on the nodes (#npiece * #nnode * 3), their responses
   // U = A^-1 G (#nnode x 3 #npiece, column-major), the grasp's share of them (k x 3 #npiece)
   std::vector<double> vol_p, vol_g, vol_gn, vol_u, vol_res;
-  // the tool's exact constraints: grasped vertices, Z = A^-1 C^T (#nnode x k, column-major),
-  // Cholesky factor of S = C Z (k x k), multipliers (k * 3)
+  // the tool's exact constraints (k = grasp.rows): grasped vertices, their rows, Z = A^-1 C^T
+  // (#nnode x k, column-major), Cholesky factor of S = C Z (k x k), multipliers and targets (k * 3)
   std::vector<int32_t> grasp_verts;
+  GraspRows grasp;
   std::vector<double> grasp_z, grasp_chol, grasp_lambda, grasp_target, grasp_rhs;
-  // this step: awake, held vertices of the tool (0: none); results of the organ's solve
+  // this step: awake, grasp rows held by the tool (0: none); results of the organ's solve
   int thread = 0;                  // worker thread that solves this organ
   bool active = false;
   int32_t grasp_active = 0;
