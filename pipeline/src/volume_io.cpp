@@ -1024,9 +1024,21 @@ bool decode_dicom_slice(const fs::path& f, DicomSlice* s) {
   // was decoded into 128 M zeros (fuzzing, 4 s under ASan).
   std::error_code size_error;
   const auto file_bytes = fs::file_size(f, size_error);
-  if (!reader.GetFile().GetHeader().GetDataSetTransferSyntax().IsEncapsulated() && !size_error && len > file_bytes)
+  const bool encapsulated = reader.GetFile().GetHeader().GetDataSetTransferSyntax().IsEncapsulated();
+  if (!encapsulated && !size_error && len > file_bytes)
     throw InputError(f.string(), "pixel data shorter than the image size (" + std::to_string(file_bytes) +
                                      " bytes in the file, " + std::to_string(len) + " needed): truncated");
+  // GDCM's raw codec copies the image size from the Pixel Data element's value without checking
+  // its length (heap overflow on a 31-byte value, fuzzing).
+  if (!encapsulated) {
+    const gdcm::DataSet& ds = reader.GetFile().GetDataSet();
+    const gdcm::Tag pixel_data(0x7fe0, 0x0010);
+    const gdcm::ByteValue* bv = ds.FindDataElement(pixel_data) ? ds.GetDataElement(pixel_data).GetByteValue() : nullptr;
+    const size_t have = bv ? static_cast<size_t>(static_cast<uint32_t>(bv->GetLength())) : 0;
+    if (have < len)
+      throw InputError(f.string(), "Pixel Data (7FE0,0010) holds " + std::to_string(have) + " bytes, the image needs " +
+                                       std::to_string(len) + ": truncated");
+  }
   std::vector<char> buffer(len);
   if (!img.GetBuffer(buffer.data()))
     throw InputError(f.string(), "pixel data cannot be decoded (corrupt or unsupported transfer syntax)");
