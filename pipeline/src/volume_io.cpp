@@ -848,6 +848,8 @@ void check_dicom_lengths(const fs::path& f) {
   int depth = 0;
   // GDCM asserts (ReadExplicitDataElement) when the file ends inside the file meta group.
   bool saw_meta = false, saw_data_set = false;
+  int bits_allocated = 0, bits_stored = 0;  // 0: absent
+  bool saw_intercept = false, saw_slope = false;
   while (pos < d.size()) {
     if (pos + 8 > d.size()) throw InputError(where, "truncated DICOM data element at byte " + std::to_string(pos));
     const uint32_t group = u16(pos), elem = u16(pos + 2);
@@ -954,6 +956,10 @@ void check_dicom_lengths(const fs::path& f) {
         // BitsAllocated 1 or 12 made GDCM assert in GetScalarType; the slice reader takes 8, 16, 32.
         if (group == 0x0028 && elem == 0x0100 && u16(pos) != 8 && u16(pos) != 16 && u16(pos) != 32)
           throw InputError(where, name + " BitsAllocated: expected 8, 16 or 32, got " + std::to_string(u16(pos)));
+        if (group == 0x0028 && elem == 0x0100) bits_allocated = static_cast<int>(u16(pos));
+        if (group == 0x0028 && elem == 0x0101) bits_stored = static_cast<int>(u16(pos));
+        if (group == 0x0028 && elem == 0x1052) saw_intercept = true;
+        if (group == 0x0028 && elem == 0x1053) saw_slope = true;
         if (k.vr[0] != 'U') {
           std::istringstream vs(value);
           std::string tok;
@@ -964,9 +970,21 @@ void check_dicom_lengths(const fs::path& f) {
             const double x = std::strtod(tok.c_str(), &end);
             if (tok.empty() || *end != '\0' || !std::isfinite(x))
               throw InputError(where, name + ": expected finite numbers, got '" + io::printable_text(value) + "'");
+            // GDCM asserts (ImageHelper::GetRescaleInterceptSlopeValue) on a zero slope.
+            if (group == 0x0028 && elem == 0x1053 && x == 0.0)
+              throw InputError(where, name + " RescaleSlope: expected a non-zero number, got '" + io::printable_text(value) + "'");
           }
         }
       }
+    // A CT slice is greyscale; on a palette or colour interpretation without its lookup tables GDCM
+    // asserts (PixmapReader::ReadImageInternal).
+    if (depth == 0 && group == 0x0028 && elem == 0x0004 && len > 0) {
+      std::string pi = d.substr(pos, len);
+      pi = pi.substr(0, pi.find_last_not_of(std::string("\0 ", 2)) + 1);
+      if (pi != "MONOCHROME1" && pi != "MONOCHROME2")
+        throw InputError(where, "DICOM Photometric Interpretation (0028,0004): expected MONOCHROME1 or MONOCHROME2 (a greyscale CT "
+                                "slice), got '" + io::printable_text(pi) + "'");
+    }
     // GDCM asserts (PixmapReader::ReadImageInternal) on a retired Recognition Code that is not
     // an ACR-NEMA one.
     if (depth == 0 && group == 0x0008 && elem == 0x0010 && len > 0) {
@@ -980,6 +998,18 @@ void check_dicom_lengths(const fs::path& f) {
   }
   if (saw_meta && !saw_data_set)
     throw InputError(where, "DICOM file meta information (group 0002): the file ends inside it (no data set follows)");
+  // DICOM has RescaleIntercept and RescaleSlope together; with the intercept alone GDCM took a zero
+  // slope and asserted (ImageHelper::GetRescaleInterceptSlopeValue).
+  if (saw_intercept != saw_slope)
+    throw InputError(where, std::string("DICOM ") + (saw_intercept ? "RescaleIntercept (0028,1052) without RescaleSlope (0028,1053)"
+                                                                   : "RescaleSlope (0028,1053) without RescaleIntercept (0028,1052)") +
+                                ": expected both or neither");
+  // GDCM's raw codec masks unused high bits only in 16-bit samples; on 8 or 32 bits with fewer
+  // stored it asserts (ImageCodec::DecodeByStreams: BitsAllocated == BitsStored).
+  if (bits_allocated > 0 && bits_stored > 0 &&
+      (bits_stored > bits_allocated || (bits_allocated != 16 && bits_stored != bits_allocated)))
+    throw InputError(where, "DICOM BitsStored (0028,0101) " + std::to_string(bits_stored) + " with BitsAllocated (0028,0100) " +
+                                std::to_string(bits_allocated) + ": expected BitsStored <= 16 with 16 bits allocated, else equal");
 }
 
 // Decodes one file with GDCM, in this process. Throws InputError; returns false for a DICOMDIR.
