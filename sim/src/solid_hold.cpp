@@ -38,17 +38,18 @@ double solid_hold_stiffness(const Model& m, const Work& w, const std::vector<int
       if (v >= 0 && v < m.nvert && m.vert_organ[v] == b.organ && b.embed_tet[v - r.vert_begin] >= 0)
         local.push_back(v - r.vert_begin);
     if (local.empty()) continue;
-    const GraspRows rows = grasp_rows(b, local);
-    const int32_t k = rows.rows;
-    if (bi < w.solid.size() && w.solid[bi].grasp_verts == local &&
-        w.solid[bi].grasp_chol.size() == static_cast<size_t>(k) * k) {
-      total += ones_quadratic(w.solid[bi].grasp_chol.data(), k);  // the step's own factor
-      continue;
+    if (bi < w.solid.size() && w.solid[bi].grasp_verts == local) {  // held: the step's own rows and factor
+      const int32_t k = w.solid[bi].grasp.rows;
+      if (w.solid[bi].grasp_chol.size() == static_cast<size_t>(k) * k) {
+        total += ones_quadratic(w.solid[bi].grasp_chol.data(), k);
+        continue;
+      }
     }
     // Not held yet (a probe's patch before the touch): the step's Schur complement, built here.
+    const GraspRows rows = grasp_rows(b, local);
     Eigen::MatrixXd Z, L;
     if (!grasp_schur(b, local, rows, Z, L)) continue;
-    total += ones_quadratic(L.data(), k);
+    total += ones_quadratic(L.data(), rows.rows);
   }
   return std::isfinite(total) ? total : 0.0;
 }
