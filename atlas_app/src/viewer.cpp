@@ -123,6 +123,26 @@ void Viewer::begin() {
   ImGui::NewFrame();
 }
 
+bool Viewer::label_anchor(size_t v, Eigen::Vector3f& p) const {
+  if (!slice.active()) {
+    p = centroids_[v];
+    return true;
+  }
+  const Eigen::Vector4f c = slice.clip();
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  size_t kept = 0;
+  const std::vector<float>& x = positions_[v];
+  for (size_t i = 0; i + 2 < x.size(); i += 3) {
+    const Eigen::Vector3f q(x[i], x[i + 1], x[i + 2]);
+    if (c.head<3>().dot(q) + c[3] > 0) continue;  // cut away
+    sum += q.cast<double>();
+    ++kept;
+  }
+  if (kept == 0) return false;
+  p = (sum / static_cast<double>(kept)).cast<float>();
+  return true;
+}
+
 void Viewer::update_slice_image() {
   if (!ct_ || !slice.active()) {
     ct_slice_ = SlicePlane{};
@@ -202,11 +222,13 @@ void Viewer::end() {
   for (size_t v = 0; v < styles.size(); ++v) {
     if (!styles[v].visible) continue;
     const std::string text = overlay_text(scene_.display_name(static_cast<int>(v)));
+    Eigen::Vector3f anchor;
+    if (!label_anchor(v, anchor)) continue;
     if (labeled[v]) {
       float x, y;
-      if (camera.project(centroids_[v], x, y)) tags.push_back({ImVec2(x, y), ImVec2(x, y), ImGui::CalcTextSize(text.c_str()), text});
+      if (camera.project(anchor, x, y)) tags.push_back({ImVec2(x, y), ImVec2(x, y), ImGui::CalcTextSize(text.c_str()), text});
     } else if (hover_names && static_cast<int>(v) == hovered) {
-      label(centroids_[v], text, IM_COL32(255, 255, 255, 255));
+      label(anchor, text, IM_COL32(255, 255, 255, 255));
     }
   }
   if (!tags.empty()) {

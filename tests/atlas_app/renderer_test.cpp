@@ -159,5 +159,29 @@ TEST(Renderer, AxialSliceShowsTheCtGreyOnThePlaneAndTheSectionOverIt) {
   EXPECT_NEAR(bg[2], 33, 3);
 }
 
+// A label sits on what the slice keeps: the kept part's centroid, and no label at all when the
+// slice removes the whole organ (sectional views named organs that were no longer drawn).
+TEST(Renderer, LabelAnchorFollowsTheSliceAndVanishesWithTheOrgan) {
+  const io::OrganSet set = io::read_organ_set(test::atlas_dir());
+  AtlasScene scene(set, {"liver"}, {}, PhysicsSettings{});
+  auto ctx = make_osmesa_context(64, 48);
+  Viewer viewer(*ctx, scene);
+  const auto& V = set.find("liver")->mesh.vertices;
+  float zlo = 1e9f, zhi = -1e9f;
+  for (size_t i = 2; i < V.size(); i += 3) zlo = std::min(zlo, static_cast<float>(V[i])), zhi = std::max(zhi, static_cast<float>(V[i]));
+  Eigen::Vector3f whole, kept;
+  ASSERT_TRUE(viewer.label_anchor(0, whole));
+  const float zm = 0.5f * (zlo + zhi);
+  viewer.slice = SlicePlane{2, zm, true};  // keeps z < zm
+  ASSERT_TRUE(viewer.label_anchor(0, kept));
+  EXPECT_LT(kept.z(), zm);
+  EXPECT_LT(kept.z(), whole.z());
+  viewer.slice = SlicePlane{2, zlo - 1.0f, true};  // everything lies above the plane: cut away
+  EXPECT_FALSE(viewer.label_anchor(0, kept));
+  viewer.slice = SlicePlane{2, zlo - 1.0f, false};  // keeps z > the plane: all of it
+  ASSERT_TRUE(viewer.label_anchor(0, kept));
+  EXPECT_NEAR((kept - whole).norm(), 0.0f, 1e-3f);
+}
+
 }  // namespace
 }  // namespace softatlas::app

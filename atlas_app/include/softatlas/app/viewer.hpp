@@ -71,6 +71,9 @@ class Viewer {
   ImGuiContext* imgui() { return imgui_; }
   // The organ set's CT (atlas.yaml `ct:`), read once; null when the set records none.
   const io::CtImage* ct() const { return ct_.get(); }
+  // Where view organ v's name is anchored: its centroid, or with a slice the centroid of the part
+  // the slice keeps; false when the slice removes all of it (no label for an organ not drawn).
+  bool label_anchor(size_t v, Eigen::Vector3f& p) const;
 
  private:
   void begin();
