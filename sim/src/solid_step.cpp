@@ -485,6 +485,8 @@ void compile_solids(const SceneDesc& scene, Model& m) {
       if (m.vert_inv_mass[r.vert_begin + v] > 0 || b.embed_tet[v] < 0) continue;
       ++b.nfixed;
       const int32_t* n = &b.tets[4 * b.embed_tet[v]];
+      if (b.node_anchored.empty()) b.node_anchored.assign(b.nnode, 0);
+      for (int i = 0; i < 4; ++i) b.node_anchored[n[i]] = 1;
       const double* bw = &b.embed_w[4 * v];
       for (int i = 0; i < 4; ++i) {
         for (int j = 0; j < 4; ++j) T.emplace_back(n[i], n[j], b.anchor_weight * bw[i] * bw[j]);
@@ -569,29 +571,51 @@ std::vector<SolidWork> make_solid_work(const Model& m) {
   return out;
 }
 
+// A held vertex whose tetrahedron has a node of an anchored tetrahedron gets no row (row -1): an
+// exact hold one tetrahedron from an anchor (1e3 times stiffer than the lattice) demands a strain
+// the lattice cannot take, and the organ's far side flew (a CT pancreas 9 mm thick, pushed 5 mm
+// 1.9 mm from two anchors: a vertex 22 mm away moved 47 mm; pushed 20 mm, 120 mm). The
+// attachment holds what is next to it; the tool holds the rest of the patch.
 GraspRows grasp_rows(const SolidBody& b, const std::vector<int32_t>& local) {
   GraspRows g;
   g.row.resize(local.size());
   std::vector<int32_t> tet_row;  // tetrahedra of the held vertices, in order of first appearance
+  auto at_anchor = [&](int32_t t) {
+    if (b.node_anchored.empty()) return false;
+    for (int i = 0; i < 4; ++i)
+      if (b.node_anchored[b.tets[4 * t + i]]) return true;
+    return false;
+  };
   for (size_t j = 0; j < local.size(); ++j) {
     const int32_t t = b.embed_tet[local[j]];
+    if (at_anchor(t)) {
+      g.row[j] = -1;
+      continue;
+    }
     const auto it = std::find(tet_row.begin(), tet_row.end(), t);
     g.row[j] = static_cast<int32_t>(it - tet_row.begin());
     if (it == tet_row.end()) tet_row.push_back(t);
   }
   g.rows = static_cast<int32_t>(tet_row.size());
   std::vector<int32_t> count(tet_row.size(), 0);
-  for (int32_t r : g.row) ++count[r];
+  for (int32_t r : g.row)
+    if (r >= 0) ++count[r];
   g.share.resize(local.size());
-  for (size_t j = 0; j < local.size(); ++j) g.share[j] = 1.0 / count[g.row[j]];
+  for (size_t j = 0; j < local.size(); ++j) g.share[j] = g.row[j] < 0 ? 0.0 : 1.0 / count[g.row[j]];
   return g;
 }
 
 bool grasp_schur(const SolidBody& b, const std::vector<int32_t>& local, const GraspRows& g, Eigen::MatrixXd& Z,
                  Eigen::MatrixXd& L) {
   const int32_t k = g.rows;
+  if (k == 0) {  // every held vertex sits at an anchor: nothing to hold
+    Z.resize(b.nnode, 0);
+    L.resize(0, 0);
+    return true;
+  }
   Eigen::MatrixXd Ct = Eigen::MatrixXd::Zero(b.nnode, k);
   for (size_t j = 0; j < local.size(); ++j) {
+    if (g.row[j] < 0) continue;
     const int32_t* n = &b.tets[4 * b.embed_tet[local[j]]];
     for (int i = 0; i < 4; ++i) Ct(n[i], g.row[j]) += g.share[j] * b.embed_w[4 * local[j] + i];
   }
@@ -689,6 +713,7 @@ void grasp_project(const SolidBody& b, const SolidWork& w, Nodes& X, Eigen::Map<
     for (Eigen::Index col = 0; col < X.cols(); ++col) res(r, col) = target ? target[3 * r + col] : 0.0;
   for (size_t j = 0; j < w.grasp_verts.size(); ++j) {
     const int32_t v = w.grasp_verts[j];
+    if (w.grasp.row[j] < 0) continue;  // at an anchor: not held
     const int32_t* nd = &b.tets[4 * b.embed_tet[v]];
     for (Eigen::Index col = 0; col < X.cols(); ++col) {
       double x = 0.0;
@@ -935,8 +960,9 @@ SolidStats solid_step(const Model& m, State& s, Work& work) {
         int32_t j = 0;
         for (size_t q = 0; q < tool.verts.size(); ++q)
           if (m.vert_organ[tool.verts[q]] == b.organ) {
-            for (int c = 0; c < 3; ++c)
-              w.grasp_target[3 * w.grasp.row[j] + c] += w.grasp.share[j] * work.tool_target[3 * q + c];
+            if (w.grasp.row[j] >= 0)
+              for (int c = 0; c < 3; ++c)
+                w.grasp_target[3 * w.grasp.row[j] + c] += w.grasp.share[j] * work.tool_target[3 * q + c];
             ++j;
           }
         w.grasp_active = w.grasp.rows;
