@@ -84,7 +84,7 @@ def main():
         put("nifti", name, read(os.path.join(ROOT, "data", "sample", name)))
     put("nifti", "tiny_int16.nii", small_nifti())
     put("nifti", "tiny_uint8_labels.nii", small_nifti(datatype=2, bitpix=8, ext=label_table_ext()))
-    put("nifti", "tiny_float.nii.gz", gzip.compress(small_nifti(datatype=16, bitpix=32), 6))
+    put("nifti", "tiny_float.nii.gz", gzip.compress(small_nifti(datatype=16, bitpix=32), 6, mtime=0))
     # NRRD and MetaImage: 6 x 5 x 4 shorts, raw and gzip, LPS geometry.
     nx, ny, nz = 6, 5, 4
     body = struct.pack("<%dh" % (nx * ny * nz), *[(i * 37) % 2000 - 1000 for i in range(nx * ny * nz)])
@@ -92,7 +92,7 @@ def main():
            "sizes: %d %d %d\nspace directions: (0.8,0,0) (0,0.8,0) (0,0,2.5)\nkinds: domain domain domain\n"
            "endian: little\nencoding: %s\nspace origin: (-40,30,700)\n\n")
     put("nrrd", "raw.nrrd", (hdr % (nx, ny, nz, "raw")).encode() + body)
-    put("nrrd", "gzip.nrrd", (hdr % (nx, ny, nz, "gzip")).encode() + gzip.compress(body, 6))
+    put("nrrd", "gzip.nrrd", (hdr % (nx, ny, nz, "gzip")).encode() + gzip.compress(body, 6, mtime=0))
     mha = ("ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
            "CompressedData = %s\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nOffset = -40 30 700\n"
            "CenterOfRotation = 0 0 0\nAnatomicalOrientation = RAI\nElementSpacing = 0.8 0.8 2.5\n"

@@ -61,7 +61,7 @@ def main():
               "sizeof_0": (0, "<i", 0), "sizeof_swapped_540": (0, ">i", 540)}
     for name, (off, fmt, v) in fields.items():
         put("nifti", name + ".nii", patch(nii, off, fmt, v))
-        put("nifti", name + ".nii.gz", gzip.compress(patch(nii, off, fmt, v)))
+        put("nifti", name + ".nii.gz", gzip.compress(patch(nii, off, fmt, v), mtime=0))
     put("nifti", "ext_size_huge.nii", patch(lab, 352, "<i", 1 << 30))
     put("nifti", "ext_size_neg.nii", patch(lab, 352, "<i", -16))
     put("nifti", "ext_size_8.nii", patch(lab, 352, "<i", 8))
