@@ -99,7 +99,8 @@ TriMesh remesh_to_faces(const TriMesh& surface, int faces) {
   return from_cgal(sm);
 }
 
-sim::fem::TetMesh tetrahedralize(const TriMesh& surface, double cell_size, double facet_distance) {
+sim::fem::TetMesh tetrahedralize(const TriMesh& surface, double cell_size, double facet_distance,
+                                 const RefineFocus* focus) {
   using Polyhedron = CGAL::Polyhedron_3<K>;
   using Domain = CGAL::Polyhedral_mesh_domain_3<Polyhedron, K>;
   using Tr = CGAL::Mesh_triangulation_3<Domain, CGAL::Default, CGAL::Sequential_tag>::type;
@@ -117,9 +118,28 @@ sim::fem::TetMesh tetrahedralize(const TriMesh& surface, double cell_size, doubl
   Domain domain(poly);
   CGAL::get_default_random() = CGAL::Random(7);
   namespace P = CGAL::parameters;
-  Criteria criteria(P::facet_angle = 25, P::facet_size = cell_size, P::facet_distance = facet_distance,
-                    P::cell_radius_edge_ratio = 2.5, P::cell_size = cell_size);
-  C3t3 c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, P::no_perturb(), P::no_exude());
+  // Sizing field (Mesh_3's sizing-field concept): the cell size, smaller around the focus.
+  struct Sizing {
+    double base;
+    RefineFocus f;
+    bool on;
+    K::FT operator()(const Point& p, const int, const Domain::Index&) const {
+      if (!on) return base;
+      const double d = std::sqrt(CGAL::to_double(CGAL::squared_distance(p, Point(f.centre[0], f.centre[1], f.centre[2]))));
+      return std::min(base, f.size + f.grade * std::max(0.0, d - f.radius));
+    }
+  };
+  const Sizing size{cell_size, focus ? *focus : RefineFocus{}, focus != nullptr && focus->size > 0};
+  C3t3 c3t3;
+  if (size.on) {
+    Criteria criteria(P::facet_angle = 25, P::facet_size = size, P::facet_distance = facet_distance,
+                      P::cell_radius_edge_ratio = 2.5, P::cell_size = size);
+    c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, P::no_perturb(), P::no_exude());
+  } else {
+    Criteria criteria(P::facet_angle = 25, P::facet_size = cell_size, P::facet_distance = facet_distance,
+                      P::cell_radius_edge_ratio = 2.5, P::cell_size = cell_size);
+    c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, P::no_perturb(), P::no_exude());
+  }
   sim::fem::TetMesh mesh;
   std::map<Tr::Vertex_handle, int32_t> id;
   for (auto c = c3t3.cells_in_complex_begin(); c != c3t3.cells_in_complex_end(); ++c)

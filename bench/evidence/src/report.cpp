@@ -51,7 +51,9 @@ std::string accuracy_markdown(const json& r) {
   if (r.contains("reference")) {
     const auto& ref = r["reference"];
     o << "\nReference: " << ref["model"].get<std::string>() << ", " << ref["nodes"] << " nodes, " << ref["tets"]
-      << " tetrahedra (CGAL Mesh_3, cell " << f(num(ref["cell_size_m"])) << " m), E = " << f(num(ref["young_modulus_pa"]))
+      << " tetrahedra (CGAL Mesh_3, cell " << f(num(ref["cell_size_m"])) << " m"
+      << (ref.contains("tool_refinement") ? "; " + ref["tool_refinement"].get<std::string>() : std::string())
+      << "), E = " << f(num(ref["young_modulus_pa"]))
       << " Pa, nu = " << f(num(ref["poisson_ratio"])) << ".\n\n| load | Newton iterations | converged | relative residual | seconds | reaction on tool (N) | grasp stiffness (N/m) |\n|---|---|---|---|---|---|---|\n";
     for (const auto& s : ref["solutions"])
       o << "| " << s["load"].get<std::string>() << " | " << s["newton_iterations"] << " | " << (s["converged"].get<bool>() ? "yes" : "no")

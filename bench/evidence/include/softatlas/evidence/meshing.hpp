@@ -3,6 +3,8 @@
 // because it compiles slowly.
 #pragma once
 
+#include <array>
+
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -28,8 +30,17 @@ TriMesh read_surface(const std::string& path);
 // result is closed, genus as the input, outward oriented. Throws InputError if it is not.
 TriMesh remesh_to_faces(const TriMesh& surface, int faces);
 
+// Local refinement of a tetrahedralisation: cells of `size` within `radius` of `centre`, growing
+// by `grade` per unit of distance beyond it up to the mesh's cell size (surface units).
+struct RefineFocus {
+  std::array<double, 3> centre{0, 0, 0};
+  double radius = 0.0, size = 0.0, grade = 0.5;
+};
+
 // Tetrahedral mesh of the volume bounded by a closed surface (CGAL Mesh_3, polyhedral domain):
-// cell size and facet distance in the surface's units. Deterministic (fixed seed).
-sim::fem::TetMesh tetrahedralize(const TriMesh& surface, double cell_size, double facet_distance);
+// cell size and facet distance in the surface's units, optionally refined around a focus (the
+// tool of a displacement load, whose edge is a stress singularity). Deterministic (fixed seed).
+sim::fem::TetMesh tetrahedralize(const TriMesh& surface, double cell_size, double facet_distance,
+                                 const RefineFocus* focus = nullptr);
 
 }  // namespace softatlas::evidence
