@@ -46,7 +46,9 @@ Push plan_push(const sim::Model& m, int32_t organ) {
   Push p;
   p.organ = organ;
   const sim::OrganRange& r = m.organs[organ];
-  auto rest = [&](int32_t v, int k) { return k == 0 ? m.vert_rest_x[v] : k == 1 ? m.vert_rest_y[v] : m.vert_rest_z[v]; };
+  auto rest = [&](int32_t v, int k) {
+    return k == 0 ? m.vert_rest_x[v] : k == 1 ? m.vert_rest_y[v] : m.vert_rest_z[v];
+  };
   double best2 = INFINITY;
   int32_t va = -1, vb = -1;
   for (size_t o = 0; o < m.organs.size(); ++o) {
@@ -179,8 +181,8 @@ int bench_contact(const ContactArgs& a) {
     finite = finite && r.finite;
     const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     std::fprintf(stderr, "bench contact: %d of %zu (%s toward %s): %.2f mm, %.2f ms/step; ETA %.0f s\n", k,
-                 organs.size(), m.organs[o].name.c_str(), m.organs[p.neighbour].name.c_str(),
-                 1e3 * r.max_penetration_m, r.ms_per_step, el / k * (organs.size() - k));
+                 organs.size(), m.organs[o].name.c_str(), m.organs[p.neighbour].name.c_str(), 1e3 * r.max_penetration_m,
+                 r.ms_per_step, el / k * (organs.size() - k));
   }
   nlohmann::json j = {{"set", a.set_dir},
                       {"push_mm", a.push_mm},

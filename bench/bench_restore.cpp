@@ -41,7 +41,8 @@ double rigid_residual(const sim::Model& m, const sim::State& s, int32_t organ) {
   double worst2 = 0.0;
   for (int32_t v = r.vert_begin; v < r.vert_end; ++v) {
     const Eigen::Vector3d p = R * (Eigen::Vector3d(s.x[v], s.y[v], s.z[v]) - pc) + qc;
-    worst2 = std::max(worst2, (p - Eigen::Vector3d(m.vert_rest_x[v], m.vert_rest_y[v], m.vert_rest_z[v])).squaredNorm());
+    worst2 =
+        std::max(worst2, (p - Eigen::Vector3d(m.vert_rest_x[v], m.vert_rest_y[v], m.vert_rest_z[v])).squaredNorm());
   }
   return std::sqrt(worst2);
 }
@@ -94,8 +95,7 @@ std::vector<int32_t> anterior_inferior_region(const sim::Model& m, int32_t organ
 
 }  // namespace
 
-RestoreResult run_restore(const sim::SceneDesc& scene, const std::string& organ_name,
-                          const RestoreOptions& opt) {
+RestoreResult run_restore(const sim::SceneDesc& scene, const std::string& organ_name, const RestoreOptions& opt) {
   const sim::Model m = sim::compile(scene);
   const int32_t organ = sim::find_organ(m, organ_name);
   if (organ < 0) throw InputError("--organ", "organ '" + organ_name + "' is not simulated in this scene");
@@ -135,8 +135,8 @@ RestoreResult run_restore(const sim::SceneDesc& scene, const std::string& organ_
     if (std::abs(pct) > std::abs(out.volume_change_pct)) out.volume_change_pct = pct;
     if (opt.progress && k >= next_progress) {
       const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::fprintf(stderr, "bench restore: %s, %s, t = %.1f / %.1f s simulated (%.1f s wall)\n",
-                   organ_name.c_str(), phase, k * m.dt_s, n_total * m.dt_s, wall);
+      std::fprintf(stderr, "bench restore: %s, %s, t = %.1f / %.1f s simulated (%.1f s wall)\n", organ_name.c_str(),
+                   phase, k * m.dt_s, n_total * m.dt_s, wall);
       next_progress += steps_for(1.0);
     }
     return true;
@@ -148,8 +148,8 @@ RestoreResult run_restore(const sim::SceneDesc& scene, const std::string& organ_
   }
   // Pull along the region's outward direction, anterior-inferior.
   const double dir[3] = {0.0, std::sqrt(0.5), -std::sqrt(0.5)};
-  if (ok) sim::attach(m, s, grasp, {opt.pull_m * dir[0], opt.pull_m * dir[1], opt.pull_m * dir[2]},
-                      static_cast<int>(n_pull));
+  if (ok)
+    sim::attach(m, s, grasp, {opt.pull_m * dir[0], opt.pull_m * dir[1], opt.pull_m * dir[2]}, static_cast<int>(n_pull));
   for (int64_t i = 0; i < n_pull + n_hold && ok; ++i) ok = advance("pull");
   if (ok) {
     double c[3] = {0, 0, 0};
@@ -186,9 +186,12 @@ int bench_restore(const RestoreArgs& a) {
   io::SceneOptions so;
   so.model_override = model_name;
   if (!integrator_name.empty() && !sim::parse_integrator(integrator_name, so.integrator))
-    throw InputError("--integrator", "unknown integrator '" + integrator_name + "' (expected verlet, semi-implicit or implicit)");
-  if (dt > 0) so.dt_s = dt;
-  else if (dt != -1.0) throw InputError("--dt", "expected a positive time step");
+    throw InputError("--integrator",
+                     "unknown integrator '" + integrator_name + "' (expected verlet, semi-implicit or implicit)");
+  if (dt > 0)
+    so.dt_s = dt;
+  else if (dt != -1.0)
+    throw InputError("--dt", "expected a positive time step");
   sim::SceneDesc scene = io::scene_from_organ_set(io::read_organ_set(set_dir), so);
   scene.threads = threads;
   if (no_sleep) scene.allow_sleep = false;
@@ -207,8 +210,8 @@ int bench_restore(const RestoreArgs& a) {
   j["rest_drift_mm"] = r.finite ? nlohmann::json(r.rest_drift_mm) : nlohmann::json(nullptr);
   j["pull_reached_mm"] = r.finite ? nlohmann::json(r.pull_reached_mm) : nlohmann::json(nullptr);
   j["residual_mm"] = r.finite ? nlohmann::json(r.residual_mm) : nlohmann::json(nullptr);
-  j["restoration_time_s"] = r.finite && r.restoration_time_s >= 0 ? nlohmann::json(r.restoration_time_s)
-                                                                  : nlohmann::json(nullptr);
+  j["restoration_time_s"] =
+      r.finite && r.restoration_time_s >= 0 ? nlohmann::json(r.restoration_time_s) : nlohmann::json(nullptr);
   j["volume_change_pct"] = r.volume_change_pct;
   j["finite"] = r.finite;
   j["integrator"] = r.integrator;

@@ -44,8 +44,7 @@ void bench_ref_scenario(sim::OrganDesc& d, sim::ModelKind model) {
     if (used[v]) ids.push_back(static_cast<int32_t>(v));
   const size_t n = std::min<size_t>(10, ids.size());
   std::partial_sort(ids.begin(), ids.begin() + static_cast<long>(n), ids.end(), [&](int32_t a, int32_t b) {
-    return d.vertices[3 * a + 2] < d.vertices[3 * b + 2] ||
-           (d.vertices[3 * a + 2] == d.vertices[3 * b + 2] && a < b);
+    return d.vertices[3 * a + 2] < d.vertices[3 * b + 2] || (d.vertices[3 * a + 2] == d.vertices[3 * b + 2] && a < b);
   });
   d.fixed.assign(ids.begin(), ids.begin() + static_cast<long>(n));
   sim::Material& m = d.material;
@@ -85,7 +84,8 @@ int bench_sim(const BenchSimArgs& a) {
     throw InputError("--model", "unknown model '" + model_name + "' (expected tmsm, cmsm, nmsm or flexion)");
   sim::Integrator integrator;
   if (!sim::parse_integrator(integrator_name, integrator))
-    throw InputError("--integrator", "unknown integrator '" + integrator_name + "' (expected verlet, semi-implicit or implicit)");
+    throw InputError("--integrator",
+                     "unknown integrator '" + integrator_name + "' (expected verlet, semi-implicit or implicit)");
   sim::SceneDesc scene;
   for (size_t i = 0; i < meshes.size(); ++i) {
     sim::OrganDesc d = body_from_mesh(meshes[i], i);
@@ -97,8 +97,8 @@ int bench_sim(const BenchSimArgs& a) {
   scene.gravity = !no_gravity;
   scene.guard = !no_guard;
   scene.cg_iterations = cg_iterations;
-  scene.cg_tolerance = 0.0;  // always run the requested iterations: the cost is what we time
-  scene.allow_sleep = false; // same work every step as bench-ref
+  scene.cg_tolerance = 0.0;   // always run the requested iterations: the cost is what we time
+  scene.allow_sleep = false;  // same work every step as bench-ref
   // bench-ref has no contact (and the meshes of --mesh come from different sources, placed as
   // they are): contact on by default made TMSM 5.9x bench-ref here (1.1x without).
   scene.contact = false;
@@ -162,8 +162,8 @@ int bench_sim(const BenchSimArgs& a) {
     std::printf("%s\n", j.dump().c_str());
   } else {
     std::printf("%s %s: %d vertices, %d springs, %.3f us/step (%.3f ns/spring), finite: %s\n",
-                j["model"].get<std::string>().c_str(), j["integrator"].get<std::string>().c_str(),
-                m.nvert, m.nspring, median, j["ns_per_spring"].get<double>(), finite ? "yes" : "no");
+                j["model"].get<std::string>().c_str(), j["integrator"].get<std::string>().c_str(), m.nvert, m.nspring,
+                median, j["ns_per_spring"].get<double>(), finite ? "yes" : "no");
   }
   return finite ? 0 : 3;
 }
@@ -217,7 +217,8 @@ void add_bench_sim(CLI::App& bench, cli::Status* status) {
   app->add_option("--steps", a->steps, "timed steps per repeat")->check(CLI::Range(1, 1000000));
   app->add_option("--repeat", a->repeat, "timed repeats (the median is reported)")->check(CLI::Range(1, 1000));
   app->add_option("--warmup", a->warmup, "untimed steps first")->check(CLI::Range(0, 1000000));
-  app->add_option("--threads", a->threads, "worker threads (the core steps organs in parallel)")->check(CLI::Range(1, 64));
+  app->add_option("--threads", a->threads, "worker threads (the core steps organs in parallel)")
+      ->check(CLI::Range(1, 64));
   app->add_option("--dt", a->dt, "time step (s)")->check(io::finite_in(1e-7, 0.1));
   app->add_flag("--json", a->json_out, "print one JSON object");
   app->add_flag("--no-gravity", a->no_gravity, "rest shape stays put (checks force-free rest)");
@@ -257,8 +258,6 @@ void add_commands(CLI::App& root, cli::Status* status) {
   add_bench_contact(*bench, status);
 }
 
-int cli_main(const std::vector<std::string>& args) {
-  return cli::run_only(add_commands, args);
-}
+int cli_main(const std::vector<std::string>& args) { return cli::run_only(add_commands, args); }
 
 }  // namespace softatlas::bench

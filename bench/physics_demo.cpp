@@ -37,13 +37,11 @@ struct DemoRun {
 };
 
 // Side view (y right, z up) of the mesh edges: rest in grey, each model in its colour.
-std::string svg_picture(const io::TriMesh& rest, const std::vector<DemoRun>& runs,
-                        const std::vector<int32_t>& face) {
+std::string svg_picture(const io::TriMesh& rest, const std::vector<DemoRun>& runs, const std::vector<int32_t>& face) {
   double lo[2] = {1e300, 1e300}, hi[2] = {-1e300, -1e300};
   auto grow = [&](const std::vector<double>& V) {
     for (size_t i = 0; i < V.size() / 3; ++i)
-      for (int c = 0; c < 2; ++c)
-        lo[c] = std::min(lo[c], V[3 * i + 1 + c]), hi[c] = std::max(hi[c], V[3 * i + 1 + c]);
+      for (int c = 0; c < 2; ++c) lo[c] = std::min(lo[c], V[3 * i + 1 + c]), hi[c] = std::max(hi[c], V[3 * i + 1 + c]);
   };
   grow(rest.vertices);
   for (const DemoRun& r : runs) grow(r.deformed);
@@ -79,10 +77,11 @@ std::string svg_picture(const io::TriMesh& rest, const std::vector<DemoRun>& run
       os << "<circle cx='" << x << "' cy='" << y << "' r='3' fill='black'/>\n";
     }
     char title[200];
-    std::snprintf(title, sizeof title, "%s: feedback %.0f mN, volume %+.2f %%", runs[k].model.c_str(),
-                  std::sqrt(runs[k].feedback_mN[0] * runs[k].feedback_mN[0] + runs[k].feedback_mN[1] * runs[k].feedback_mN[1] +
-                            runs[k].feedback_mN[2] * runs[k].feedback_mN[2]),
-                  runs[k].volume_change_pct);
+    std::snprintf(
+        title, sizeof title, "%s: feedback %.0f mN, volume %+.2f %%", runs[k].model.c_str(),
+        std::sqrt(runs[k].feedback_mN[0] * runs[k].feedback_mN[0] + runs[k].feedback_mN[1] * runs[k].feedback_mN[1] +
+                  runs[k].feedback_mN[2] * runs[k].feedback_mN[2]),
+        runs[k].volume_change_pct);
     os << "<text x='" << ox + pad << "' y='20'>" << title << "</text>\n";
     os << "<text x='" << ox + pad << "' y='" << H - 4 << "' fill='#777'>side view (y right, z up); grey: rest</text>\n";
   }
@@ -114,14 +113,19 @@ int physics_demo(const DemoArgs& a) {
   const std::vector<int32_t> face{mesh.faces[3 * top], mesh.faces[3 * top + 1], mesh.faces[3 * top + 2]};
   std::vector<int32_t> order(mesh.vertex_count());
   for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int32_t>(i);
-  std::sort(order.begin(), order.end(), [&](int32_t a, int32_t b) { return mesh.vertices[3 * a + 2] < mesh.vertices[3 * b + 2]; });
+  std::sort(order.begin(), order.end(),
+            [&](int32_t a, int32_t b) { return mesh.vertices[3 * a + 2] < mesh.vertices[3 * b + 2]; });
   order.resize(20);
 
   std::vector<DemoRun> runs;
   std::printf("%-8s %28s %14s %12s %10s\n", "model", "feedback force (mN)", "volume (%)", "max disp", "ms/step");
-  struct Variant { sim::ModelKind kind; double volume; const char* label; };
-  const Variant variants[] = {{sim::ModelKind::tmsm, 0.0, "tmsm"}, {sim::ModelKind::cmsm, 0.0, "cmsm"},
-                              {sim::ModelKind::nmsm, 0.0, "nmsm"}, {sim::ModelKind::nmsm, 0.5, "nmsm+vol"},
+  struct Variant {
+    sim::ModelKind kind;
+    double volume;
+    const char* label;
+  };
+  const Variant variants[] = {{sim::ModelKind::tmsm, 0.0, "tmsm"},       {sim::ModelKind::cmsm, 0.0, "cmsm"},
+                              {sim::ModelKind::nmsm, 0.0, "nmsm"},       {sim::ModelKind::nmsm, 0.5, "nmsm+vol"},
                               {sim::ModelKind::flexion, 0.5, "flexion"}, {sim::ModelKind::solid, 0.0, "solid"}};
   for (const Variant& var : variants) {
     const sim::ModelKind kind = var.kind;
@@ -133,7 +137,7 @@ int physics_demo(const DemoArgs& a) {
     d.fixed = order;
     d.material.model = kind;
     d.material.young_modulus_pa = 4000.0;  // liver-like, a few kPa
-    d.material.elastica_b = 0.5;  // Table II, 1000 faces
+    d.material.elastica_b = 0.5;           // Table II, 1000 faces
     d.material.tau_s = kind == sim::ModelKind::cmsm ? 0.0 : -1.0;
     d.material.flexion_stiffness = kind == sim::ModelKind::flexion ? 1e-4 : 0.0;
     d.material.volume_stiffness = var.volume;
@@ -172,8 +176,10 @@ int physics_demo(const DemoArgs& a) {
   j["iterations"] = 30;
   j["hold_steps"] = hold_steps;
   for (const DemoRun& r : runs)
-    j["runs"].push_back({{"model", r.model}, {"feedback_force_mN", r.feedback_mN},
-                         {"volume_change_pct", r.volume_change_pct}, {"max_displacement_mm", r.max_displacement_mm},
+    j["runs"].push_back({{"model", r.model},
+                         {"feedback_force_mN", r.feedback_mN},
+                         {"volume_change_pct", r.volume_change_pct},
+                         {"max_displacement_mm", r.max_displacement_mm},
                          {"ms_per_step", r.ms_per_step}});
   staged.write_and_commit([&](const std::string& dir) {
     io::write_file_atomic((fs::path(dir) / "deformation.svg").string(), svg_picture(mesh, runs, face));
@@ -190,7 +196,8 @@ void add_sim_demo(CLI::App& sim, cli::Status* status) {
   auto a = std::make_shared<DemoArgs>();
   app->add_option("--mesh", a->mesh_path, "surface mesh in mm");
   app->add_option("--out", a->out, "output folder");
-  app->add_option("--pull-mm", a->pull_mm, "pull of the top face along [0, 1, 1] (mm)")->check(io::finite_in(-200, 200));
+  app->add_option("--pull-mm", a->pull_mm, "pull of the top face along [0, 1, 1] (mm)")
+      ->check(io::finite_in(-200, 200));
   app->add_option("--hold-steps", a->hold_steps, "steps (1 ms) the face is held after the 30 iterations (at most 20 s)")
       ->check(CLI::Range(0, 20000));
   cli::on_run(app, status, [a] { return physics_demo(*a); });

@@ -12,9 +12,9 @@ namespace fs = std::filesystem;
 namespace softatlas::fuzz {
 
 const std::vector<std::string>& targets() {
-  static const std::vector<std::string> t = {"nifti",    "nrrd",     "metaimage", "dicom",     "mesh_obj",
-                                             "mesh_ply", "mesh_stl", "mesh_off",  "organ_set", "lesson",
-                                             "device_script", "seeds", "build_yaml"};
+  static const std::vector<std::string> t = {"nifti",         "nrrd",     "metaimage", "dicom",     "mesh_obj",
+                                             "mesh_ply",      "mesh_stl", "mesh_off",  "organ_set", "lesson",
+                                             "device_script", "seeds",    "build_yaml"};
   return t;
 }
 

@@ -28,7 +28,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
 #else
     softatlas::fuzz::feed(SOFTATLAS_FUZZ_TARGET, bytes);
 #endif
-  } catch (const softatlas::InputError&) {
-  }
+  } catch (const softatlas::InputError&) {}
   return 0;
 }

@@ -97,15 +97,17 @@ int demo(const std::string& out) {
   std::error_code ec;
   std::filesystem::create_directories(out + "/logs", ec);
   std::fprintf(stderr, "== 1/4 physics: pull the paper-000 liver with every model\n");
-  int rc = stdout_to(out + "/logs/sim_demo.txt", [&] { return softatlas::bench::cli_main({"sim", "demo", "--out", out + "/physics"}); });
+  int rc = stdout_to(out + "/logs/sim_demo.txt", [&] {
+    return softatlas::bench::cli_main({"sim", "demo", "--out", out + "/physics"});
+  });
   if (rc != 0) return rc;
   {
     const nlohmann::json j = read_json(out + "/physics/results.json");
     std::string models;
     for (const auto& r : j.value("runs", nlohmann::json::array()))
       if (r.contains("model") && r.contains("volume_change_pct")) {
-        std::snprintf(line, sizeof line, "%s%s %+.1f %%", models.empty() ? "" : ", ", r["model"].get<std::string>().c_str(),
-                      r["volume_change_pct"].get<double>());
+        std::snprintf(line, sizeof line, "%s%s %+.1f %%", models.empty() ? "" : ", ",
+                      r["model"].get<std::string>().c_str(), r["volume_change_pct"].get<double>());
         models += line;
       }
     summary.push_back("physics   liver pulled 20 mm, volume change per model: " + models);
@@ -116,9 +118,8 @@ int demo(const std::string& out) {
   const std::string set = out + "/organ_set";
   std::filesystem::remove_all(set, ec);  // the demo is re-runnable; build refuses existing folders
   rc = softatlas::pipeline::cli_main({"build", data + "/sample/ct_heart_crop.nii.gz", "--labels",
-                                      "heart=" + data + "/sample/heart_on_ct_heart_crop_grid.nii.gz",
-                                      "--labels", "pulmonary_artery=" + data + "/sample/pulmonary_artery.nii.gz",
-                                      "-o", set});
+                                      "heart=" + data + "/sample/heart_on_ct_heart_crop_grid.nii.gz", "--labels",
+                                      "pulmonary_artery=" + data + "/sample/pulmonary_artery.nii.gz", "-o", set});
   if (rc != 0) return rc;
   rc = stdout_to(out + "/check.json", [&] { return softatlas::pipeline::cli_main({"check", set}); });
   if (rc != 0) return rc;
@@ -130,11 +131,13 @@ int demo(const std::string& out) {
     std::string organs;
     const nlohmann::json list = q.contains("organs") ? q["organs"] : nlohmann::json::object();
     for (const auto& [name, o] : list.items()) {
-      std::snprintf(line, sizeof line, "%s%s %d faces %s, %.0f mL", organs.empty() ? "" : ", ", name.c_str(), o.value("faces", 0),
-                    o.value("closed", false) ? "closed" : "OPEN", o.value("volume_mm3", 0.0) * 1e-3);
+      std::snprintf(line, sizeof line, "%s%s %d faces %s, %.0f mL", organs.empty() ? "" : ", ", name.c_str(),
+                    o.value("faces", 0), o.value("closed", false) ? "closed" : "OPEN",
+                    o.value("volume_mm3", 0.0) * 1e-3);
       organs += line;
     }
-    summary.push_back("pipeline  organ set from the sample CT: " + (organs.empty() ? std::string("see check.json") : organs));
+    summary.push_back("pipeline  organ set from the sample CT: " +
+                      (organs.empty() ? std::string("see check.json") : organs));
     summary.push_back("          -> " + set + "/, " + out + "/check.json");
     summary.push_back("export    " + out + "/atlas.glb (glTF 2.0: anterior +Z, superior +Y, centred)");
   }
@@ -156,7 +159,8 @@ int demo(const std::string& out) {
   }
 #endif
   const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("SoftAtlas demo: done in %.0f s (JSON reports in %s, subcommand output in %s/logs)\n", s, out.c_str(), out.c_str());
+  std::printf("SoftAtlas demo: done in %.0f s (JSON reports in %s, subcommand output in %s/logs)\n", s, out.c_str(),
+              out.c_str());
   for (const std::string& l : summary) std::printf("  %s\n", l.c_str());
   return 0;
 }
@@ -168,8 +172,9 @@ int dispatch(const std::vector<std::string>& args) {
   root.require_subcommand(1);
   softatlas::cli::Status status;
   CLI::App* demo_cmd = root.add_subcommand(
-      "demo", "build the embedded sample CT into an organ set, export glTF, pull a liver with every physics model "
-              "and play a lesson headless; prints a short summary, writes every JSON report under --out");
+      "demo",
+      "build the embedded sample CT into an organ set, export glTF, pull a liver with every physics model "
+      "and play a lesson headless; prints a short summary, writes every JSON report under --out");
   auto demo_out = std::make_shared<std::string>("out/demo");
   demo_cmd->add_option("--out", *demo_out, "output folder (default out/demo)");
   softatlas::cli::on_run(demo_cmd, &status, [demo_out] { return demo(*demo_out); });
@@ -184,7 +189,8 @@ int dispatch(const std::vector<std::string>& args) {
   softatlas::app::add_commands(root, &status);
 #endif
   bool known = false;
-  for (const CLI::App* s : root.get_subcommands([](CLI::App*) { return true; })) known = known || s->get_name() == args[0];
+  for (const CLI::App* s : root.get_subcommands([](CLI::App*) { return true; }))
+    known = known || s->get_name() == args[0];
   if (!known) {
     std::fprintf(stderr, "softatlas: unknown command '%s' (or not part of this build)\n%s",
                  softatlas::io::printable_text(args[0], 80).c_str(), kUsage);

@@ -48,11 +48,19 @@ std::string bench_render(const RenderBenchOptions& o) {
   }
   ctx->gl().Finish();
   const double s = seconds_since(t0);
-  nlohmann::json j = {{"benchmark", "render"}, {"set", o.set}, {"backend", ctx->backend()},
-                      {"gl", ctx->describe()}, {"width", o.width}, {"height", o.height},
-                      {"frames", o.frames}, {"faces", viewer.renderer().face_count()},
-                      {"deform", o.deform}, {"ui", o.ui}, {"seconds", s},
-                      {"fps", o.frames / s}, {"ms_per_frame", s / o.frames * 1e3}};
+  nlohmann::json j = {{"benchmark", "render"},
+                      {"set", o.set},
+                      {"backend", ctx->backend()},
+                      {"gl", ctx->describe()},
+                      {"width", o.width},
+                      {"height", o.height},
+                      {"frames", o.frames},
+                      {"faces", viewer.renderer().face_count()},
+                      {"deform", o.deform},
+                      {"ui", o.ui},
+                      {"seconds", s},
+                      {"fps", o.frames / s},
+                      {"ms_per_frame", s / o.frames * 1e3}};
   return j.dump(2) + "\n";
 }
 
@@ -147,11 +155,17 @@ std::string bench_haptic(const HapticBenchOptions& o) {
   const HapticStats st = loop.stats();
   if (!st.message.empty()) std::fprintf(stderr, "bench haptic: %s\n", st.message.c_str());
   const long ns = physics_steps.load();
-  nlohmann::json j = {{"benchmark", "haptic"}, {"set", o.set}, {"seconds", o.seconds},
-                      {"cycles", st.cycles}, {"rate_hz", st.cycles / render_s},
-                      {"period_us_p50", st.period_us_p50}, {"period_us_p99", st.period_us_p99},
-                      {"period_us_max", st.period_us_max}, {"period_us_p999", st.period_us_p999},
-                      {"periods_over_2ms", st.late_2ms}, {"period_us_mean", st.period_us_mean},
+  nlohmann::json j = {{"benchmark", "haptic"},
+                      {"set", o.set},
+                      {"seconds", o.seconds},
+                      {"cycles", st.cycles},
+                      {"rate_hz", st.cycles / render_s},
+                      {"period_us_p50", st.period_us_p50},
+                      {"period_us_p99", st.period_us_p99},
+                      {"period_us_max", st.period_us_max},
+                      {"period_us_p999", st.period_us_p999},
+                      {"periods_over_2ms", st.late_2ms},
+                      {"period_us_mean", st.period_us_mean},
                       {"physics_steps", ns},
                       {"physics_us_per_step", ns ? physics_busy_s.load() / static_cast<double>(ns) * 1e6 : 0.0},
                       // simulated seconds of the whole scene per wall second of the physics thread
@@ -160,16 +174,22 @@ std::string bench_haptic(const HapticBenchOptions& o) {
                       // ticks whose force was recomputed from the tissue model, per second
                       {"force_update_hz", static_cast<double>(st.model_ticks) / render_s},
                       {"model_update_hz", static_cast<double>(st.model_updates) / render_s},
-                      {"force_jump_max_N", st.force_jump_max_N}, {"force_peak_N", st.peak_force_N},
+                      {"force_jump_max_N", st.force_jump_max_N},
+                      {"force_peak_N", st.peak_force_N},
                       {"coupling_stiffness_N_m", loop.coupling().params().stiffness_N_m},
                       {"coupling_damping_N_s_m", loop.coupling().params().damping_N_s_m},
-                      {"render_fps", frames / render_s}, {"render_fps_target", o.render_fps},
-                      {"haptic_physics_cpu", cpus.haptic_cpu}, {"render_cpus", cpus.render_cpus},
+                      {"render_fps", frames / render_s},
+                      {"render_fps_target", o.render_fps},
+                      {"haptic_physics_cpu", cpus.haptic_cpu},
+                      {"render_cpus", cpus.render_cpus},
                       {"render_size", {o.width, o.height}},
                       {"render_threads", std::getenv("LP_NUM_THREADS") ? std::getenv("LP_NUM_THREADS") : ""},
-                      {"peak_force_N", st.peak_force_N}, {"realtime", st.realtime},
-                      {"memory_locked", locked}, {"message", st.message.empty() ? lock_msg : st.message},
-                      {"faces", scene.model.nface}, {"vertices", scene.model.nvert}};
+                      {"peak_force_N", st.peak_force_N},
+                      {"realtime", st.realtime},
+                      {"memory_locked", locked},
+                      {"message", st.message.empty() ? lock_msg : st.message},
+                      {"faces", scene.model.nface},
+                      {"vertices", scene.model.nvert}};
   return j.dump(2) + "\n";
 }
 

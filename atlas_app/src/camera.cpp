@@ -10,8 +10,8 @@ constexpr float kDeg = 3.14159265358979f / 180.0f;
 
 Eigen::Vector3f Camera::eye() const {
   const float yaw = yaw_deg * kDeg, pitch = pitch_deg * kDeg;
-  return target + distance * Eigen::Vector3f(std::sin(yaw) * std::cos(pitch),
-                                             std::cos(yaw) * std::cos(pitch), std::sin(pitch));
+  return target +
+         distance * Eigen::Vector3f(std::sin(yaw) * std::cos(pitch), std::cos(yaw) * std::cos(pitch), std::sin(pitch));
 }
 
 Eigen::Matrix4f Camera::view() const {
@@ -73,13 +73,26 @@ void Camera::frame(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
 }
 
 bool Camera::set_view(const std::string& name) {
-  if (name == "anterior") { yaw_deg = 0; pitch_deg = 0; }
-  else if (name == "posterior") { yaw_deg = 180; pitch_deg = 0; }
-  else if (name == "right") { yaw_deg = 90; pitch_deg = 0; }
-  else if (name == "left") { yaw_deg = -90; pitch_deg = 0; }
-  else if (name == "superior") { yaw_deg = 0; pitch_deg = 89; }
-  else if (name == "inferior") { yaw_deg = 0; pitch_deg = -89; }
-  else return false;
+  if (name == "anterior") {
+    yaw_deg = 0;
+    pitch_deg = 0;
+  } else if (name == "posterior") {
+    yaw_deg = 180;
+    pitch_deg = 0;
+  } else if (name == "right") {
+    yaw_deg = 90;
+    pitch_deg = 0;
+  } else if (name == "left") {
+    yaw_deg = -90;
+    pitch_deg = 0;
+  } else if (name == "superior") {
+    yaw_deg = 0;
+    pitch_deg = 89;
+  } else if (name == "inferior") {
+    yaw_deg = 0;
+    pitch_deg = -89;
+  } else
+    return false;
   return true;
 }
 

@@ -33,11 +33,13 @@ struct ViewArgs {
 };
 
 int run_view(const ViewArgs& a) {
-  const auto& [target, screenshot, given_view, slice, headless, labels, norealtime, frames_given, view_given, frames, width, height] = a;
+  const auto& [target, screenshot, given_view, slice, headless, labels, norealtime, frames_given, view_given, frames,
+               width, height] = a;
   const SlicePlane slice_plane = parse_slice_option(slice);
   // Without --view, a slice is seen from its cut side: axial from above, sagittal from the right.
   std::string view = given_view;
-  if (!view_given && slice_plane.active()) view = slice_plane.axis == 2 ? "superior" : slice_plane.axis == 0 ? "right" : "anterior";
+  if (!view_given && slice_plane.active())
+    view = slice_plane.axis == 2 ? "superior" : slice_plane.axis == 0 ? "right" : "anterior";
   std::unique_ptr<Lesson> lesson;
   io::OrganSet set;
   if (is_lesson_file(target)) {
@@ -68,7 +70,9 @@ int run_view(const ViewArgs& a) {
   auto ctx = make_osmesa_context(width, height);
   Viewer viewer(*ctx, scene);
   Camera probe;
-  if (!probe.set_view(view)) throw InputError("--view", "unknown view '" + view + "' (expected anterior, posterior, left, right, superior or inferior)");
+  if (!probe.set_view(view))
+    throw InputError("--view",
+                     "unknown view '" + view + "' (expected anterior, posterior, left, right, superior or inferior)");
   viewer.camera.set_view(view);
   viewer.frame_all();
   if (labels) viewer.labeled.assign(viewer.labeled.size(), true);
@@ -136,7 +140,8 @@ int run_lesson_run(const LessonRunArgs& a) {
         staged.write_and_commit([&](const std::string& dir) { return run_lesson(lesson, script, dir, a.ro); });
     for (const StepResult& s : r.steps)
       if (s.task)
-        std::fprintf(stderr, "  step %d %-5s %s  %s\n", s.index + 1, s.kind.c_str(), s.passed ? "pass" : "FAIL", s.reason.c_str());
+        std::fprintf(stderr, "  step %d %-5s %s  %s\n", s.index + 1, s.kind.c_str(), s.passed ? "pass" : "FAIL",
+                     s.reason.c_str());
     std::fprintf(stderr, "lesson %s: %s; pictures and report in %s\n", lesson.title.c_str(),
                  r.passed ? "passed" : "failed", out.c_str());
     std::fputs(r.json.c_str(), stdout);
@@ -149,11 +154,14 @@ void add_view(CLI::App& root, cli::Status* status) {
   auto a = std::make_shared<ViewArgs>();
   app->add_option("target", a->target, "organ set folder or lesson .yaml")->required();
   app->add_flag("--headless", a->headless, "render off-screen (OSMesa), no window");
-  CLI::Option* frames = app->add_option("--frames", a->frames, "frames to render (headless)")->check(CLI::Range(1, 100000));
+  CLI::Option* frames =
+      app->add_option("--frames", a->frames, "frames to render (headless)")->check(CLI::Range(1, 100000));
   app->add_option("--width", a->width, "width in pixels")->check(CLI::Range(16, 8192));
   app->add_option("--height", a->height, "height in pixels")->check(CLI::Range(16, 8192));
   app->add_option("--screenshot", a->screenshot, "write the last frame as PNG");
-  CLI::Option* view = app->add_option("--view", a->view, "anterior|posterior|left|right|superior|inferior (default anterior; with --slice, the plane's cut side)");
+  CLI::Option* view = app->add_option(
+      "--view", a->view,
+      "anterior|posterior|left|right|superior|inferior (default anterior; with --slice, the plane's cut side)");
   app->add_flag("--labels", a->labels, "label every organ");
   app->add_option("--slice", a->slice, "cut the organs at a plane: axial:Z, coronal:Y or sagittal:X (mm, RAS)");
   app->add_flag("--no-realtime", a->norealtime, "do not ask for SCHED_FIFO for the haptic loop");
@@ -219,7 +227,8 @@ void add_bench(CLI::App& root, cli::Status* status) {
   app->add_option("--seconds", a->o.seconds)->check(CLI::Range(0.1, 3600.0));
   app->add_option("--width", a->o.width)->check(CLI::Range(16, 8192));
   app->add_option("--height", a->o.height)->check(CLI::Range(16, 8192));
-  app->add_option("--render-threads", a->o.render_threads, "llvmpipe threads (LP_NUM_THREADS)")->check(CLI::Range(1, 64));
+  app->add_option("--render-threads", a->o.render_threads, "llvmpipe threads (LP_NUM_THREADS)")
+      ->check(CLI::Range(1, 64));
   app->add_option("--render-fps", a->o.render_fps,
                   "pace the render loop like a display at this rate (default 60); 0 = as fast as it can")
       ->check(CLI::Range(0.0, 1000.0));
@@ -241,8 +250,6 @@ void add_commands(CLI::App& root, cli::Status* status) {
   add_bench(root, status);
 }
 
-int cli_main(const std::vector<std::string>& args) {
-  return cli::run_only(add_commands, args);
-}
+int cli_main(const std::vector<std::string>& args) { return cli::run_only(add_commands, args); }
 
 }  // namespace softatlas::app

@@ -13,10 +13,21 @@ class OsmesaContext final : public GlContext {
   OsmesaContext(int w, int h) : w_(w), h_(h), buffer_(static_cast<size_t>(w) * h * 4) {
     if (w <= 0 || h <= 0 || w > 16384 || h > 16384)
       throw std::runtime_error("headless context: width and height must be 1..16384");
-    const int attribs[] = {OSMESA_FORMAT, OSMESA_RGBA, OSMESA_DEPTH_BITS, 24,
-                           OSMESA_STENCIL_BITS, 0, OSMESA_ACCUM_BITS, 0,
-                           OSMESA_PROFILE, OSMESA_CORE_PROFILE,
-                           OSMESA_CONTEXT_MAJOR_VERSION, 3, OSMESA_CONTEXT_MINOR_VERSION, 3, 0};
+    const int attribs[] = {OSMESA_FORMAT,
+                           OSMESA_RGBA,
+                           OSMESA_DEPTH_BITS,
+                           24,
+                           OSMESA_STENCIL_BITS,
+                           0,
+                           OSMESA_ACCUM_BITS,
+                           0,
+                           OSMESA_PROFILE,
+                           OSMESA_CORE_PROFILE,
+                           OSMESA_CONTEXT_MAJOR_VERSION,
+                           3,
+                           OSMESA_CONTEXT_MINOR_VERSION,
+                           3,
+                           0};
     ctx_ = OSMesaCreateContextAttribs(attribs, nullptr);
     if (!ctx_) throw std::runtime_error("OSMesa: cannot create an OpenGL 3.3 core context");
     if (!OSMesaMakeCurrent(ctx_, buffer_.data(), GL_UNSIGNED_BYTE, w, h))
@@ -64,8 +75,7 @@ std::vector<uint8_t> GlContext::read_rgba() const {
   const size_t stride = static_cast<size_t>(w) * 4;
   for (int y = 0; y < h; ++y)
     std::copy(rows.begin() + static_cast<long>((h - 1 - y) * stride),
-              rows.begin() + static_cast<long>((h - y) * stride),
-              out.begin() + static_cast<long>(y * stride));
+              rows.begin() + static_cast<long>((h - y) * stride), out.begin() + static_cast<long>(y * stride));
   return out;
 }
 

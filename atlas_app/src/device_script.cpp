@@ -21,19 +21,24 @@ void parse_pull(const Ctx& c, const YAML::Node& p, ScriptAction& a) {
     a.force_mode = m == "force";
   });
   const YAML::Node tl = c.require(p, "timeline", "pull");
-  if (!tl.IsSequence() || tl.size() == 0) c.fail(tl, "'timeline' must be a non-empty list of {t_s, offset_mm} or {t_s, force_N}");
+  if (!tl.IsSequence() || tl.size() == 0)
+    c.fail(tl, "'timeline' must be a non-empty list of {t_s, offset_mm} or {t_s, force_N}");
   double last_t = -1;
   for (const auto& k : tl) {
     c.guard([&] {
       c.keys(k, "timeline entry", {"t_s", "offset_mm", "force_N"});
       Keyframe kf;
       kf.t_s = c.num(c.require(k, "t_s", "timeline entry"), "t_s", 0, 600);
-      if (kf.t_s <= last_t) c.fail(k["t_s"], "timeline times must increase, got " + k["t_s"].Scalar() + " after " + Ctx::fmt(last_t));
+      if (kf.t_s <= last_t)
+        c.fail(k["t_s"], "timeline times must increase, got " + k["t_s"].Scalar() + " after " + Ctx::fmt(last_t));
       last_t = kf.t_s;
       const char* key = a.force_mode ? "force_N" : "offset_mm";
       const char* other = a.force_mode ? "offset_mm" : "force_N";
-      if (k[other]) c.fail(k[other], std::string("'") + other + "' does not fit mode " + (a.force_mode ? "force" : "position") + " (use '" + key + "')");
-      const auto v = c.vec(c.require(k, key, "timeline entry"), key, 3, a.force_mode ? -100 : -500, a.force_mode ? 100 : 500);
+      if (k[other])
+        c.fail(k[other], std::string("'") + other + "' does not fit mode " + (a.force_mode ? "force" : "position") +
+                             " (use '" + key + "')");
+      const auto v =
+          c.vec(c.require(k, key, "timeline entry"), key, 3, a.force_mode ? -100 : -500, a.force_mode ? 100 : 500);
       // offsets are written in mm (the user's unit) and kept in m (the core's)
       const double s = a.force_mode ? 1.0 : 1e-3;
       kf.value = {v[0] * s, v[1] * s, v[2] * s};
@@ -57,8 +62,12 @@ DeviceScript load_device_script(const std::string& path) {
     const std::string kind = c.str(c.require(root, "device", "the device script"), "device");
     if (kind != "scripted") c.fail(root["device"], "device must be 'scripted' in a device script, got '" + kind + "'");
   });
-  c.guard([&] { if (root["max_force_N"]) d.max_force_N = c.num(root["max_force_N"], "max_force_N", 0.01, 100); });
-  c.guard([&] { if (root["ramp_s"]) d.ramp_s = c.num(root["ramp_s"], "ramp_s", 0, 2); });
+  c.guard([&] {
+    if (root["max_force_N"]) d.max_force_N = c.num(root["max_force_N"], "max_force_N", 0.01, 100);
+  });
+  c.guard([&] {
+    if (root["ramp_s"]) d.ramp_s = c.num(root["ramp_s"], "ramp_s", 0, 2);
+  });
   c.guard([&] {
     const YAML::Node tasks = c.require(root, "tasks", "the device script");
     if (!tasks.IsSequence()) c.fail(tasks, "'tasks' must be a list (one entry per pull, pick, wait or answer task)");
@@ -115,7 +124,8 @@ void check_script_matches(const DeviceScript& script, const Lesson& lesson) {
   std::vector<std::string> problems;
   auto list = [&]() {
     std::string l;
-    for (size_t i = 0; i < tasks.size(); ++i) l += (i ? ", " : "") + std::to_string(i + 1) + " " + action_name(tasks[i]->kind);
+    for (size_t i = 0; i < tasks.size(); ++i)
+      l += (i ? ", " : "") + std::to_string(i + 1) + " " + action_name(tasks[i]->kind);
     return l;
   };
   const size_t n = std::min(tasks.size(), script.actions.size());
@@ -123,20 +133,22 @@ void check_script_matches(const DeviceScript& script, const Lesson& lesson) {
     const ScriptAction& a = script.actions[i];
     const LessonStep& t = *tasks[i];
     if (t.kind != a.kind) {
-      problems.push_back(a.where + ": task " + std::to_string(i + 1) + " is '" + action_name(a.kind) + "' but the lesson's task " +
-                         std::to_string(i + 1) + " (" + t.where + ") is '" + action_name(t.kind) + "'");
+      problems.push_back(a.where + ": task " + std::to_string(i + 1) + " is '" + action_name(a.kind) +
+                         "' but the lesson's task " + std::to_string(i + 1) + " (" + t.where + ") is '" +
+                         action_name(t.kind) + "'");
     } else if (t.kind == StepKind::question &&
                std::find(t.question.choices.begin(), t.question.choices.end(), a.choice) == t.question.choices.end()) {
       std::string choices;
       for (const auto& ch : t.question.choices) choices += (choices.empty() ? "" : ", ") + ch;
-      problems.push_back(a.where + ": task " + std::to_string(i + 1) + " answers '" + a.choice + "', not one of the choices of the question at " +
-                         t.where + " (" + choices + ")");
+      problems.push_back(a.where + ": task " + std::to_string(i + 1) + " answers '" + a.choice +
+                         "', not one of the choices of the question at " + t.where + " (" + choices + ")");
     }
   }
   if (tasks.size() != script.actions.size()) {
     const std::string where = script.actions.size() > tasks.size() ? script.actions[tasks.size()].where : script.file;
-    problems.push_back(where + ": the script has " + std::to_string(script.actions.size()) + " tasks but lesson " + lesson.file +
-                       " has " + std::to_string(tasks.size()) + " (" + list() + "), expected one entry per task in this order");
+    problems.push_back(where + ": the script has " + std::to_string(script.actions.size()) + " tasks but lesson " +
+                       lesson.file + " has " + std::to_string(tasks.size()) + " (" + list() +
+                       "), expected one entry per task in this order");
   }
   if (problems.empty()) return;
   // InputError(where, what): the first problem's location, then every line.

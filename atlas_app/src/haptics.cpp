@@ -23,19 +23,23 @@ ToolCommand ScriptedDevice::read(double t_s) {
   c.engaged = !keys_.empty();
   Vec3d v{0, 0, 0};
   if (!keys_.empty()) {
-    if (t_s <= keys_.front().t_s) v = keys_.front().value;
-    else if (t_s >= keys_.back().t_s) v = keys_.back().value;
+    if (t_s <= keys_.front().t_s)
+      v = keys_.front().value;
+    else if (t_s >= keys_.back().t_s)
+      v = keys_.back().value;
     else {
-      const auto it = std::upper_bound(keys_.begin(), keys_.end(), t_s,
-                                       [](double t, const Keyframe& k) { return t < k.t_s; });
+      const auto it =
+          std::upper_bound(keys_.begin(), keys_.end(), t_s, [](double t, const Keyframe& k) { return t < k.t_s; });
       const Keyframe& b = *it;
       const Keyframe& a = *(it - 1);
       const double w = (t_s - a.t_s) / std::max(b.t_s - a.t_s, 1e-12);
       for (int k = 0; k < 3; ++k) v[k] = a.value[k] + w * (b.value[k] - a.value[k]);
     }
   }
-  if (force_mode_) c.force_N = v;
-  else c.offset_m = v;
+  if (force_mode_)
+    c.force_N = v;
+  else
+    c.offset_m = v;
   return c;
 }
 
@@ -246,7 +250,8 @@ HapticStats HapticLoop::stats() const {
   std::vector<int64_t> p(periods_ns_.begin() + 1, periods_ns_.begin() + n);
   std::sort(p.begin(), p.end());
   auto q = [&](double f) {
-    return static_cast<double>(p[std::min(p.size() - 1, static_cast<size_t>(f * static_cast<double>(p.size())))]) * 1e-3;
+    return static_cast<double>(p[std::min(p.size() - 1, static_cast<size_t>(f * static_cast<double>(p.size())))]) *
+           1e-3;
   };
   s.period_us_p50 = q(0.5);
   s.period_us_p99 = q(0.99);

@@ -28,8 +28,8 @@ using Clock = std::chrono::steady_clock;
 struct PhysicsThread {
   AtlasScene* scene = nullptr;
   HapticLoop* loop = nullptr;
-  std::mutex mutex;                       // guards requests and the snapshot
-  std::vector<int32_t> grasp_request;     // global vertices to grasp (empty + release_request)
+  std::mutex mutex;                    // guards requests and the snapshot
+  std::vector<int32_t> grasp_request;  // global vertices to grasp (empty + release_request)
   bool grasp_pending = false, release_pending = false;
   std::vector<std::vector<float>> snapshot;
   double us_per_step = 0, max_disp_mm = 0;
@@ -175,8 +175,9 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
   double peak_force = 0, pull_disp = 0;  // pull_disp: reached within the time limit (simulated)
   PhysicsSettings live = physics;
   // The panel starts from the lesson's model, else the first simulated organ's material.
-  const std::string start_model = !live.model.empty() ? live.model
-                                  : set.find(scene->name(0)) ? set.find(scene->name(0))->material.model : "nmsm";
+  const std::string start_model = !live.model.empty()        ? live.model
+                                  : set.find(scene->name(0)) ? set.find(scene->name(0))->material.model
+                                                             : "nmsm";
   int model_index = 0;
   for (int i = 0; i < kPanelModelCount; ++i)
     if (start_model == kPanelModels[i]) model_index = i;
@@ -204,11 +205,14 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
     }
     const TaskOutcome& o = outcomes[static_cast<size_t>(lesson_step)];
     viewer->caption.ok = !o.done || o.passed;
-    if (!o.done) viewer->caption.status = s->kind == StepKind::pull ? "grasp " + s->pull.organ + " and pull (drag)" :
-                                          s->kind == StepKind::pick ? "click an organ" :
-                                          s->kind == StepKind::question ? "choose an answer (click it or press its number)" : "";
-    else viewer->caption.status = std::string(o.passed ? "PASS: " : "FAIL: ") + o.reason +
-                                  (o.passed ? "   (Right arrow: next step, r: retry)" : "   (try again; r: reset)");
+    if (!o.done)
+      viewer->caption.status = s->kind == StepKind::pull       ? "grasp " + s->pull.organ + " and pull (drag)"
+                               : s->kind == StepKind::pick     ? "click an organ"
+                               : s->kind == StepKind::question ? "choose an answer (click it or press its number)"
+                                                               : "";
+    else
+      viewer->caption.status = std::string(o.passed ? "PASS: " : "FAIL: ") + o.reason +
+                               (o.passed ? "   (Right arrow: next step, r: retry)" : "   (try again; r: reset)");
   };
   // Shows step k: the display state of steps 0..k replayed from the start (so Left arrow undoes a
   // hide), the step's caption, and its outcome so far.
@@ -231,7 +235,10 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
     for (int i = 0; i <= lesson_step; ++i) apply_view_step(lesson->steps[static_cast<size_t>(i)], *viewer, *scene);
     const LessonStep& s = *current();
     viewer->caption.title = caption_title(*lesson, static_cast<size_t>(lesson_step));
-    viewer->caption.text = s.kind == StepKind::say ? s.text : s.kind == StepKind::question ? s.hint.empty() ? s.question.ask : s.hint + "\n" + s.question.ask : s.hint;
+    viewer->caption.text = s.kind == StepKind::say ? s.text
+                           : s.kind == StepKind::question
+                               ? s.hint.empty() ? s.question.ask : s.hint + "\n" + s.question.ask
+                               : s.hint;
     viewer->hover_names = s.kind != StepKind::pick && s.kind != StepKind::question;
     TaskOutcome& o = outcomes[static_cast<size_t>(lesson_step)];
     if (s.kind == StepKind::wait && !o.done) o = {true, true, 1, "waited"};
@@ -337,7 +344,8 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         const float depth = (grab_point - viewer->camera.eye()).norm();
         const float mm_per_px = 2.0f * depth * std::tan(0.5f * viewer->camera.fov_y_deg * 3.14159265f / 180.0f) /
                                 static_cast<float>(viewer->camera.height);
-        const Eigen::Vector3f off = (right_v * (px - static_cast<float>(grab_x)) - up_v * (py - static_cast<float>(grab_y))) * mm_per_px;
+        const Eigen::Vector3f off =
+            (right_v * (px - static_cast<float>(grab_x)) - up_v * (py - static_cast<float>(grab_y))) * mm_per_px;
         mouse.set({off.x() * 1e-3, off.y() * 1e-3, off.z() * 1e-3}, true);
         hand_off = off;
       } else if (!left && dragging) {
@@ -349,7 +357,8 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
       }
       if (right && orbiting) {
         viewer->camera.yaw_deg -= static_cast<float>(mx - last_x) * 0.4f;
-        viewer->camera.pitch_deg = std::clamp(viewer->camera.pitch_deg + static_cast<float>(my - last_y) * 0.4f, -89.0f, 89.0f);
+        viewer->camera.pitch_deg =
+            std::clamp(viewer->camera.pitch_deg + static_cast<float>(my - last_y) * 0.4f, -89.0f, 89.0f);
       }
       orbiting = right;
       if (io.MouseWheel != 0) viewer->camera.distance *= std::pow(0.9f, io.MouseWheel);
@@ -384,17 +393,21 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
       // force on the hand as an arrow from the grasp point (60 mm per newton, at least 20 mm).
       const auto& P = draw[static_cast<size_t>(grasp_view)];
       Eigen::Vector3f c(0, 0, 0);
-      for (int32_t i : grasp_local) c += Eigen::Vector3f(P[3 * static_cast<size_t>(i)], P[3 * static_cast<size_t>(i) + 1], P[3 * static_cast<size_t>(i) + 2]);
+      for (int32_t i : grasp_local)
+        c += Eigen::Vector3f(P[3 * static_cast<size_t>(i)], P[3 * static_cast<size_t>(i) + 1],
+                             P[3 * static_cast<size_t>(i) + 2]);
       c /= static_cast<float>(grasp_local.size());
       const Eigen::Vector3f fv(static_cast<float>(f[0]), static_cast<float>(f[1]), static_cast<float>(f[2]));
-      const Eigen::Vector3f tip = c + (fmag > 0 ? Eigen::Vector3f(fv / fmag * std::max(20.0f, 60.0f * fmag)) : Eigen::Vector3f::Zero());
+      const Eigen::Vector3f tip =
+          c + (fmag > 0 ? Eigen::Vector3f(fv / fmag * std::max(20.0f, 60.0f * fmag)) : Eigen::Vector3f::Zero());
       const Eigen::Vector3f hand = grab_point + hand_off;
       viewer->lines.push_back({c, hand, {0.8f, 0.8f, 0.85f, 0.7f}});
       add_arrow(viewer->lines, c, tip, {1.0f, 0.85f, 0.1f, 1.0f});
       char b[32];
       std::snprintf(b, sizeof b, "%.2f N", fmag);
       viewer->texts.push_back({tip, b});
-      if (const LessonStep* cur = current(); cur && cur->kind == StepKind::pull && cur->pull.organ == scene->name(grasp_view)) {
+      if (const LessonStep* cur = current();
+          cur && cur->kind == StepKind::pull && cur->pull.organ == scene->name(grasp_view)) {
         double disp, since;
         {
           std::lock_guard<std::mutex> lock(phys->mutex);
@@ -407,7 +420,8 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         disp = pull_disp;
         char r[128];
         if (peak_force > cur->pull.max_force_N) {
-          std::snprintf(r, sizeof r, "pulled too hard: peak force %.2f N above the %.2f N allowed", peak_force, cur->pull.max_force_N);
+          std::snprintf(r, sizeof r, "pulled too hard: peak force %.2f N above the %.2f N allowed", peak_force,
+                        cur->pull.max_force_N);
           record(false, r);
         } else if (disp >= cur->pull.min_displacement_mm) {
           std::snprintf(r, sizeof r, "reached %.1f mm with a peak force of %.2f N", disp, peak_force);
@@ -439,7 +453,8 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
             if (scene->system(static_cast<int>(v)) != sys) continue;
             ImGui::PushID(static_cast<int>(v));
             bool vis = viewer->styles[v].visible;
-            if (ImGui::Checkbox(scene->display_name(static_cast<int>(v)).c_str(), &vis)) viewer->styles[v].visible = vis;
+            if (ImGui::Checkbox(scene->display_name(static_cast<int>(v)).c_str(), &vis))
+              viewer->styles[v].visible = vis;
             if (ImGui::IsItemHovered()) {
               const io::OrganEntry* e = set.find(scene->name(static_cast<int>(v)));
               ImGui::SetTooltip("%s  (label %d, %s)", scene->name(static_cast<int>(v)).c_str(), e ? e->label : 0,
@@ -455,7 +470,8 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
           }
           ImGui::TreePop();
         }
-        if (ImGui::Button("show all")) for (auto& s : viewer->styles) s.visible = true;
+        if (ImGui::Button("show all"))
+          for (auto& s : viewer->styles) s.visible = true;
       }
       if (ImGui::CollapsingHeader("Slice", ImGuiTreeNodeFlags_DefaultOpen)) {
         // The sectional view: plane and position (drag the slider); the CT on it when the set has one.
@@ -525,8 +541,10 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         ImGui::Text("render %.0f fps (%s)", fps, ctx->backend());
         ImGui::Text("physics %.3f ms/step, %d vertices", us * 1e-3, scene->model.nvert);
         // simulated seconds per wall second: below 1 the scene moves in slow motion
-        if (rtf > 0 && rtf < 0.95) ImGui::TextColored(ImVec4(1.0f, 0.6f, 0.2f, 1.0f), "physics %.2fx real time (slow motion)", rtf);
-        else ImGui::Text("physics %.2fx real time", rtf);
+        if (rtf > 0 && rtf < 0.95)
+          ImGui::TextColored(ImVec4(1.0f, 0.6f, 0.2f, 1.0f), "physics %.2fx real time (slow motion)", rtf);
+        else
+          ImGui::Text("physics %.2fx real time", rtf);
         ImGui::Text("haptic loop: %s", loop->running() ? "1 kHz, running" : "stopped");
         ImGui::Text("tool force %.2f N (limit %.1f N)", fmag, opt.max_force_N);
       }
@@ -535,7 +553,9 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         ImGui::SetNextWindowPos(ImVec2(10, static_cast<float>(ctx->height()) - 230), ImGuiCond_Always);
         ImGui::SetNextWindowSizeConstraints(ImVec2(380, 0), ImVec2(600, 400));
         ImGui::SetNextWindowBgAlpha(0.85f);
-        ImGui::Begin("Question", nullptr, ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoCollapse);
+        ImGui::Begin(
+            "Question", nullptr,
+            ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoCollapse);
         ImGui::TextWrapped("%s", overlay_text(s->question.ask).c_str());
         for (size_t i = 0; i < s->question.choices.size(); ++i) {
           const std::string b = std::to_string(i + 1) + ")  " + overlay_text(s->question.choices[i]);
@@ -544,10 +564,13 @@ int run_window(const io::OrganSet& set, const Lesson* lesson, const WindowOption
         ImGui::End();
       }
       if (show_help) {
-        ImGui::SetNextWindowPos(ImVec2(0.5f * static_cast<float>(ctx->width()), 0.5f * static_cast<float>(ctx->height())),
-                                ImGuiCond_Always, ImVec2(0.5f, 0.5f));
+        ImGui::SetNextWindowPos(
+            ImVec2(0.5f * static_cast<float>(ctx->width()), 0.5f * static_cast<float>(ctx->height())), ImGuiCond_Always,
+            ImVec2(0.5f, 0.5f));
         ImGui::SetNextWindowBgAlpha(0.92f);
-        ImGui::Begin("Help (h to close)", nullptr, ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoCollapse);
+        ImGui::Begin(
+            "Help (h to close)", nullptr,
+            ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoSavedSettings | ImGuiWindowFlags_NoCollapse);
         ImGui::TextUnformatted(kHelp);
         ImGui::End();
       }

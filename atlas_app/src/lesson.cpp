@@ -12,24 +12,37 @@ using yamlcheck::Ctx;
 
 const char* to_string(StepKind k) {
   switch (k) {
-    case StepKind::say: return "say";
-    case StepKind::camera: return "camera";
-    case StepKind::highlight: return "highlight";
-    case StepKind::hide: return "hide";
-    case StepKind::show: return "show";
-    case StepKind::isolate: return "isolate";
-    case StepKind::label: return "label";
-    case StepKind::pull: return "pull";
-    case StepKind::pick: return "pick";
-    case StepKind::wait: return "wait";
-    case StepKind::question: return "question";
-    case StepKind::slice: return "slice";
+    case StepKind::say:
+      return "say";
+    case StepKind::camera:
+      return "camera";
+    case StepKind::highlight:
+      return "highlight";
+    case StepKind::hide:
+      return "hide";
+    case StepKind::show:
+      return "show";
+    case StepKind::isolate:
+      return "isolate";
+    case StepKind::label:
+      return "label";
+    case StepKind::pull:
+      return "pull";
+    case StepKind::pick:
+      return "pick";
+    case StepKind::wait:
+      return "wait";
+    case StepKind::question:
+      return "question";
+    case StepKind::slice:
+      return "slice";
   }
   return "?";
 }
 
 int Lesson::task_count() const {
-  return static_cast<int>(std::count_if(steps.begin(), steps.end(), [](const LessonStep& s) { return is_task(s.kind); }));
+  return static_cast<int>(
+      std::count_if(steps.begin(), steps.end(), [](const LessonStep& s) { return is_task(s.kind); }));
 }
 
 std::string question_text(const QuestionTask& q, const std::string& chosen) {
@@ -54,7 +67,9 @@ SlicePlane parse_slice_option(const std::string& text) {
   const std::string mm = colon == std::string::npos ? "" : text.substr(colon + 1);
   const SlicePlane p = slice_plane(spec);
   if (colon == std::string::npos || p.axis < 0 || !yamlcheck::Ctx::is_number(mm))
-    throw InputError("--slice", "expected PLANE:MM with PLANE axial, coronal or sagittal and MM a number (e.g. axial:1100), got '" + text + "'");
+    throw InputError(
+        "--slice", "expected PLANE:MM with PLANE axial, coronal or sagittal and MM a number (e.g. axial:1100), got '" +
+                       text + "'");
   spec.at_mm = std::stod(mm);
   return slice_plane(spec);
 }
@@ -72,13 +87,15 @@ bool one_of(const std::string& s, const char* const* list, size_t n) {
 }
 
 void parse_physics(const Ctx& c, const YAML::Node& n, PhysicsSettings& p) {
-  c.keys(n, "scene.physics", {"model", "integrator", "dt_s", "gravity", "young_modulus_pa",
-                              "elastica_b", "damping_scale", "max_tool_force_N"});
+  c.keys(n, "scene.physics",
+         {"model", "integrator", "dt_s", "gravity", "young_modulus_pa", "elastica_b", "damping_scale",
+          "max_tool_force_N"});
   c.guard([&] {
     if (!n["model"]) return;
     p.model = c.str(n["model"], "model");
     sim::ModelKind k;
-    if (!sim::parse_model_kind(p.model, k)) c.fail(n["model"], "unknown model '" + p.model + "' (expected tmsm, cmsm, nmsm or flexion)");
+    if (!sim::parse_model_kind(p.model, k))
+      c.fail(n["model"], "unknown model '" + p.model + "' (expected tmsm, cmsm, nmsm or flexion)");
   });
   c.guard([&] {
     if (!n["integrator"]) return;
@@ -86,12 +103,24 @@ void parse_physics(const Ctx& c, const YAML::Node& n, PhysicsSettings& p) {
     if (!sim::parse_integrator(s, p.integrator))
       c.fail(n["integrator"], "unknown integrator '" + s + "' (expected verlet, semi_implicit or implicit)");
   });
-  c.guard([&] { if (n["dt_s"]) p.dt_s = c.num(n["dt_s"], "dt_s", 1e-5, 0.01); });
-  c.guard([&] { if (n["gravity"]) p.gravity = c.boolean(n["gravity"], "gravity"); });
-  c.guard([&] { if (n["young_modulus_pa"]) p.young_modulus_pa = c.num(n["young_modulus_pa"], "young_modulus_pa", 10, 1e7); });
-  c.guard([&] { if (n["elastica_b"]) p.elastica_b = c.num(n["elastica_b"], "elastica_b", 0, 10); });
-  c.guard([&] { if (n["damping_scale"]) p.damping_scale = c.num(n["damping_scale"], "damping_scale", 0, 100); });
-  c.guard([&] { if (n["max_tool_force_N"]) p.max_tool_force_N = c.num(n["max_tool_force_N"], "max_tool_force_N", 0.01, 100); });
+  c.guard([&] {
+    if (n["dt_s"]) p.dt_s = c.num(n["dt_s"], "dt_s", 1e-5, 0.01);
+  });
+  c.guard([&] {
+    if (n["gravity"]) p.gravity = c.boolean(n["gravity"], "gravity");
+  });
+  c.guard([&] {
+    if (n["young_modulus_pa"]) p.young_modulus_pa = c.num(n["young_modulus_pa"], "young_modulus_pa", 10, 1e7);
+  });
+  c.guard([&] {
+    if (n["elastica_b"]) p.elastica_b = c.num(n["elastica_b"], "elastica_b", 0, 10);
+  });
+  c.guard([&] {
+    if (n["damping_scale"]) p.damping_scale = c.num(n["damping_scale"], "damping_scale", 0, 100);
+  });
+  c.guard([&] {
+    if (n["max_tool_force_N"]) p.max_tool_force_N = c.num(n["max_tool_force_N"], "max_tool_force_N", 0.01, 100);
+  });
 }
 
 // Reads the optional field `key` of m with f, recording (not throwing) its errors.
@@ -106,16 +135,19 @@ LessonStep parse_step(const Ctx& c, const YAML::Node& n, size_t index) {
   LessonStep s;
   s.where = c.at(n);
   const std::string name = "steps[" + std::to_string(index) + "]";
-  c.keys(n, name, {"say", "camera", "highlight", "hide", "show", "isolate", "label", "pull", "pick",
-                   "wait", "question", "slice", "hint", "title"});
+  c.keys(n, name,
+         {"say", "camera", "highlight", "hide", "show", "isolate", "label", "pull", "pick", "wait", "question", "slice",
+          "hint", "title"});
   int actions = 0;
   for (const auto& kv : n) {
     const std::string k = kv.first.Scalar();
     if (k != "hint" && k != "title") ++actions;
   }
   if (actions != 1)
-    c.fail(n, name + " must have exactly one action (say, camera, highlight, hide, show, isolate, "
-                     "label, pull, pick, wait, question or slice), found " + std::to_string(actions));
+    c.fail(n, name +
+                  " must have exactly one action (say, camera, highlight, hide, show, isolate, "
+                  "label, pull, pick, wait, question or slice), found " +
+                  std::to_string(actions));
   field(c, n, "hint", [&](const YAML::Node& v) { s.hint = c.str(v, "hint"); });
   field(c, n, "title", [&](const YAML::Node& v) { s.title = c.str(v, "title"); });
   if (n["say"]) {
@@ -128,7 +160,8 @@ LessonStep parse_step(const Ctx& c, const YAML::Node& n, size_t index) {
     field(c, m, "view", [&](const YAML::Node& v) {
       s.camera.view = c.str(v, "view");
       if (!one_of(s.camera.view, kViews, 6))
-        c.fail(v, "unknown view '" + s.camera.view + "' (expected anterior, posterior, superior, inferior, left or right)");
+        c.fail(v, "unknown view '" + s.camera.view +
+                      "' (expected anterior, posterior, superior, inferior, left or right)");
     });
     field(c, m, "target", [&](const YAML::Node& v) { s.camera.target = c.str(v, "target"); });
     field(c, m, "distance_mm", [&](const YAML::Node& v) { s.camera.distance_mm = c.num(v, "distance_mm", 10, 10000); });
@@ -137,8 +170,8 @@ LessonStep parse_step(const Ctx& c, const YAML::Node& n, size_t index) {
   } else if (n["pull"]) {
     s.kind = StepKind::pull;
     const YAML::Node m = n["pull"];
-    c.keys(m, "pull", {"organ", "region", "landmark_mm", "radius_mm", "min_displacement_mm",
-                       "max_force_N", "time_limit_s"});
+    c.keys(m, "pull",
+           {"organ", "region", "landmark_mm", "radius_mm", "min_displacement_mm", "max_force_N", "time_limit_s"});
     c.guard([&] { s.pull.organ = c.str(c.require(m, "organ", "pull"), "organ"); });
     c.guard([&] {
       if (m["region"] && m["landmark_mm"]) c.fail(m, "pull takes either 'region' or 'landmark_mm', not both");
@@ -153,7 +186,9 @@ LessonStep parse_step(const Ctx& c, const YAML::Node& n, size_t index) {
       }
     });
     field(c, m, "radius_mm", [&](const YAML::Node& v) { s.pull.radius_mm = c.num(v, "radius_mm", 1, 100); });
-    c.guard([&] { s.pull.min_displacement_mm = c.num(c.require(m, "min_displacement_mm", "pull"), "min_displacement_mm", 0.1, 200); });
+    c.guard([&] {
+      s.pull.min_displacement_mm = c.num(c.require(m, "min_displacement_mm", "pull"), "min_displacement_mm", 0.1, 200);
+    });
     c.guard([&] { s.pull.max_force_N = c.num(c.require(m, "max_force_N", "pull"), "max_force_N", 0.001, 50); });
     field(c, m, "time_limit_s", [&](const YAML::Node& v) { s.pull.time_limit_s = c.num(v, "time_limit_s", 0.01, 60); });
     if (!s.pull.organ.empty()) s.organs = {s.pull.organ};
@@ -166,7 +201,8 @@ LessonStep parse_step(const Ctx& c, const YAML::Node& n, size_t index) {
     s.kind = StepKind::wait;
     const YAML::Node m = n["wait"];
     c.keys(m, "wait", {"seconds"});
-    s.wait_s = c.num(c.require(m, "seconds", "wait"), "seconds", 0, 60);  // a lesson step, not a pause: at most a minute
+    s.wait_s =
+        c.num(c.require(m, "seconds", "wait"), "seconds", 0, 60);  // a lesson step, not a pause: at most a minute
   } else if (n["question"]) {
     s.kind = StepKind::question;
     const YAML::Node m = n["question"];
@@ -200,8 +236,10 @@ LessonStep parse_step(const Ctx& c, const YAML::Node& n, size_t index) {
     });
     c.guard([&] { s.slice.at_mm = c.num(c.require(m, "at_mm", "slice"), "at_mm", -1e5, 1e5); });
   } else {
-    const std::pair<const char*, StepKind> lists[] = {{"highlight", StepKind::highlight}, {"hide", StepKind::hide},
-                                                      {"show", StepKind::show}, {"isolate", StepKind::isolate},
+    const std::pair<const char*, StepKind> lists[] = {{"highlight", StepKind::highlight},
+                                                      {"hide", StepKind::hide},
+                                                      {"show", StepKind::show},
+                                                      {"isolate", StepKind::isolate},
                                                       {"label", StepKind::label}};
     for (const auto& [key, kind] : lists)
       if (n[key]) {
@@ -264,7 +302,8 @@ Lesson load_lesson(const std::string& path) {
   c.guard([&] {
     if (L.organ_set_path.empty()) return;
     if (!fs::is_directory(L.organ_set_path))
-      c.fail(set_node, "organ set folder '" + L.organ_set_path + "' does not exist (expected a folder with atlas.yaml)");
+      c.fail(set_node,
+             "organ set folder '" + L.organ_set_path + "' does not exist (expected a folder with atlas.yaml)");
     try {
       L.set = io::read_organ_set(L.organ_set_path);
       have_set = true;
@@ -279,11 +318,13 @@ Lesson load_lesson(const std::string& path) {
   auto check_in_set = [&](const YAML::Node& list_node, const std::vector<std::string>& names) {
     for (size_t i = 0; i < names.size(); ++i)
       if (L.set.index_of(names[i]) < 0)
-        c.report(list_node.IsSequence() && i < list_node.size() ? list_node[i] : list_node,
-                 "organ '" + names[i] + "' is not in the organ set " + L.organ_set_path + " (it has: " + available + ")");
+        c.report(
+            list_node.IsSequence() && i < list_node.size() ? list_node[i] : list_node,
+            "organ '" + names[i] + "' is not in the organ set " + L.organ_set_path + " (it has: " + available + ")");
   };
   if (organs_node) check_in_set(organs_node, L.organs);
-  if (scene && scene.IsMap() && scene["context"]) check_in_set(scene["context"], L.context);  // scene: 3 is reported above
+  if (scene && scene.IsMap() && scene["context"])
+    check_in_set(scene["context"], L.context);  // scene: 3 is reported above
   for (const std::string& n : L.context)
     if (std::find(L.organs.begin(), L.organs.end(), n) != L.organs.end())
       c.report(scene["context"], "organ '" + n + "' is listed in both organs and context");
@@ -295,11 +336,13 @@ Lesson load_lesson(const std::string& path) {
     if (s.kind == StepKind::camera && !s.camera.target.empty()) names.push_back(s.camera.target);
     for (const std::string& n : names) {
       if (L.set.index_of(n) < 0) {
-        c.report(step_nodes[i], "organ '" + n + "' is not in the organ set " + L.organ_set_path + " (it has: " + available + ")");
+        c.report(step_nodes[i],
+                 "organ '" + n + "' is not in the organ set " + L.organ_set_path + " (it has: " + available + ")");
         continue;
       }
       if (std::find(in_view.begin(), in_view.end(), n) == in_view.end())
-        c.report(step_nodes[i], "organ '" + n + "' is not in this lesson's scene (add it to scene.organs or scene.context)");
+        c.report(step_nodes[i],
+                 "organ '" + n + "' is not in this lesson's scene (add it to scene.organs or scene.context)");
       else if (s.kind == StepKind::pull && std::find(L.organs.begin(), L.organs.end(), n) == L.organs.end())
         c.report(step_nodes[i], "pull needs a simulated organ: '" + n + "' must be in scene.organs, not context");
     }
@@ -316,9 +359,10 @@ Lesson load_lesson(const std::string& path) {
         std::string named;
         if (o)
           for (const auto& [rn, q] : o->regions) named += (named.empty() ? "" : ", ") + rn;
-        c.report(where, "unknown region '" + s.pull.region +
-                            "' (expected anterior, posterior, superior, inferior, left or right" +
-                            (named.empty() ? std::string(")") : ", or a named region of " + s.pull.organ + ": " + named + ")"));
+        c.report(
+            where,
+            "unknown region '" + s.pull.region + "' (expected anterior, posterior, superior, inferior, left or right" +
+                (named.empty() ? std::string(")") : ", or a named region of " + s.pull.organ + ": " + named + ")"));
       }
     }
   }

@@ -87,8 +87,11 @@ void show_end_screen(const Lesson& lesson, const std::vector<TaskOutcome>& per_s
     passed += o.passed ? 1 : 0;
     std::string title = caption_title(lesson, i);
     title = title.substr(title.find("step "));
-    text += std::string(o.passed ? "PASS  " : o.done ? "FAIL  " : "----  ") + title + " (" + to_string(lesson.steps[i].kind) + ")" +
-            (o.reason.empty() ? "" : ": " + o.reason) + (o.attempts > 1 ? "  [" + std::to_string(o.attempts) + " tries]" : "") + "\n";
+    text += std::string(o.passed ? "PASS  "
+                        : o.done ? "FAIL  "
+                                 : "----  ") +
+            title + " (" + to_string(lesson.steps[i].kind) + ")" + (o.reason.empty() ? "" : ": " + o.reason) +
+            (o.attempts > 1 ? "  [" + std::to_string(o.attempts) + " tries]" : "") + "\n";
   }
   viewer.caption.title = lesson.title + "  -  lesson complete";
   viewer.caption.text = text;
@@ -140,8 +143,10 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
     viewer.hover_names = s.kind != StepKind::pick && s.kind != StepKind::question;
     viewer.caption.status.clear();
     viewer.caption.ok = true;
-    if (s.kind == StepKind::say) viewer.caption.text = s.text;
-    else if (!s.hint.empty()) viewer.caption.text = s.hint;
+    if (s.kind == StepKind::say)
+      viewer.caption.text = s.text;
+    else if (!s.hint.empty())
+      viewer.caption.text = s.hint;
     auto vi = [&](const std::string& n) { return scene.view_index(n); };
     switch (s.kind) {
       case StepKind::say:
@@ -172,15 +177,18 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
         for (int k = 0; k < n; ++k) {
           const double tk = (k + 1) * dt;
           const ToolCommand cmd = device.read(tk);
-          if (cmd.force_mode) sim::pull_force(scene.model, scene.state, verts, cmd.force_N);
-          else if (k == 0) sim::attach(scene.model, scene.state, verts, cmd.offset_m, 1);
-          else sim::move_attachment(scene.state, cmd.offset_m);
+          if (cmd.force_mode)
+            sim::pull_force(scene.model, scene.state, verts, cmd.force_N);
+          else if (k == 0)
+            sim::attach(scene.model, scene.state, verts, cmd.offset_m, 1);
+          else
+            sim::move_attachment(scene.state, cmd.offset_m);
           physics_step();
           const Vec3d reaction = sim::tool_reaction(scene.state);
           peak = std::max(peak, norm3(reaction));
           if (std::getenv("SOFTATLAS_DEBUG_PULL"))
-            std::fprintf(stderr, "t %.3f reaction %.4f %.4f %.4f disp %.2f\n", tk, reaction[0], reaction[1], reaction[2],
-                         scene.mean_displacement_mm(verts));
+            std::fprintf(stderr, "t %.3f reaction %.4f %.4f %.4f disp %.2f\n", tk, reaction[0], reaction[1],
+                         reaction[2], scene.mean_displacement_mm(verts));
           device.write_force(shaper.shape(reaction, true, tk));
           disp = std::max(disp, scene.mean_displacement_mm(verts));
           r.physics_steps++;
@@ -198,9 +206,11 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
         const bool gentle = peak <= t.max_force_N;
         r.passed = far_enough && gentle;
         if (!far_enough)
-          r.reason = std::string("pulled too little: ") + fmt("%.1f mm of the %.1f mm needed", disp, t.min_displacement_mm);
+          r.reason =
+              std::string("pulled too little: ") + fmt("%.1f mm of the %.1f mm needed", disp, t.min_displacement_mm);
         else if (!gentle)
-          r.reason = std::string("pulled too hard: ") + fmt("peak force %.2f N above the %.2f N allowed", peak, t.max_force_N);
+          r.reason =
+              std::string("pulled too hard: ") + fmt("peak force %.2f N above the %.2f N allowed", peak, t.max_force_N);
         else
           r.reason = std::string("reached ") + fmt("%.1f mm with a peak force of %.2f N", disp, peak);
         // Picture: the grasped patch, the tool line and the force arrow at the end of the pull.
@@ -214,7 +224,8 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
         // Arrow: the force on the hand (device force), 60 mm per newton, at least 20 mm.
         const Eigen::Vector3f f(static_cast<float>(fr[0]), static_cast<float>(fr[1]), static_cast<float>(fr[2]));
         const float len = std::max(20.0f, 60.0f * f.norm());
-        const Eigen::Vector3f tip = c + (f.norm() > 0 ? Eigen::Vector3f(f.normalized() * len) : Eigen::Vector3f(0, 0, 0));
+        const Eigen::Vector3f tip =
+            c + (f.norm() > 0 ? Eigen::Vector3f(f.normalized() * len) : Eigen::Vector3f(0, 0, 0));
         add_arrow(viewer.lines, c, tip, {1.0f, 0.85f, 0.1f, 1.0f});
         viewer.texts.push_back({tip, fmt("%.2f N", f.norm(), 0)});
         sim::release(scene.state);
@@ -223,14 +234,19 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
       case StepKind::pick: {
         const ScriptAction& a = script.actions[action++];
         float px = 0, py = 0;
-        if (a.has_click_mm) viewer.camera.project(a.click_mm.cast<float>(), px, py);
-        else { px = static_cast<float>(a.click_px.x()); py = static_cast<float>(a.click_px.y()); }
+        if (a.has_click_mm)
+          viewer.camera.project(a.click_mm.cast<float>(), px, py);
+        else {
+          px = static_cast<float>(a.click_px.x());
+          py = static_cast<float>(a.click_px.y());
+        }
         viewer.set_geometry_from_scene();
         const PickHit hit = viewer.pick(px, py);
         r.picked = hit.organ >= 0 ? scene.name(hit.organ) : "";
         r.passed = r.picked == s.organs[0];
-        r.reason = r.picked.empty() ? "the click hit no organ" :
-                   (r.passed ? "picked " + r.picked : "picked " + r.picked + ", expected " + s.organs[0]);
+        r.reason = r.picked.empty()
+                       ? "the click hit no organ"
+                       : (r.passed ? "picked " + r.picked : "picked " + r.picked + ", expected " + s.organs[0]);
         if (hit.organ >= 0) {
           viewer.texts.push_back({hit.point, r.picked});
           const float m = 6.0f;
@@ -247,7 +263,8 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
         r.picked = a.choice;
         r.passed = a.choice == s.question.choices[static_cast<size_t>(s.question.answer)];
         r.reason = r.passed ? "answered " + a.choice
-                            : "answered " + a.choice + ", the answer is " + s.question.choices[static_cast<size_t>(s.question.answer)];
+                            : "answered " + a.choice + ", the answer is " +
+                                  s.question.choices[static_cast<size_t>(s.question.answer)];
         viewer.caption.text = question_text(s.question, a.choice);
         break;
       }
@@ -274,8 +291,8 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
     r.png = name;
     if (opt.write_png) viewer.save_png((std::filesystem::path(out_dir) / name).string());
     r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-    nlohmann::json j = {{"index", r.index + 1}, {"kind", r.kind}, {"where", r.where}, {"task", r.task},
-                        {"passed", r.passed}, {"png", r.png}, {"time_s", r.time_s}, {"wall_s", r.wall_s}};
+    nlohmann::json j = {{"index", r.index + 1}, {"kind", r.kind}, {"where", r.where},   {"task", r.task},
+                        {"passed", r.passed},   {"png", r.png},   {"time_s", r.time_s}, {"wall_s", r.wall_s}};
     if (s.kind == StepKind::pull) {
       j["organ"] = s.pull.organ;
       j["displacement_mm"] = r.displacement_mm;
@@ -310,16 +327,24 @@ LessonReport run_lesson(const Lesson& lesson, const DeviceScript& script, const 
   viewer.render();
   viewer.render();
   if (opt.write_png) viewer.save_png((std::filesystem::path(out_dir) / "end.png").string());
-  report.physics_us_per_step = total_physics_steps ? total_physics_s / static_cast<double>(total_physics_steps) * 1e6 : 0;
-  nlohmann::json root = {{"lesson", lesson.title}, {"file", lesson.file}, {"organ_set", lesson.organ_set_path},
-                         {"device_script", script.file}, {"passed", report.passed},
-                         {"score", {{"tasks", report.tasks}, {"passed", report.tasks_passed}}}, {"end_png", "end.png"},
+  report.physics_us_per_step =
+      total_physics_steps ? total_physics_s / static_cast<double>(total_physics_steps) * 1e6 : 0;
+  nlohmann::json root = {{"lesson", lesson.title},
+                         {"file", lesson.file},
+                         {"organ_set", lesson.organ_set_path},
+                         {"device_script", script.file},
+                         {"passed", report.passed},
+                         {"score", {{"tasks", report.tasks}, {"passed", report.tasks_passed}}},
+                         {"end_png", "end.png"},
                          {"steps", steps},
                          {"simulated_time_s", lesson_time_s},
-                         {"physics", {{"organs", scene.model.organs.size()}, {"vertices", scene.model.nvert},
-                                      {"faces", scene.model.nface}, {"dt_s", scene.model.dt_s},
-                                      {"physics_us_per_step", report.physics_us_per_step},
-                                      {"guard_restores", guard_restores}}}};
+                         {"physics",
+                          {{"organs", scene.model.organs.size()},
+                           {"vertices", scene.model.nvert},
+                           {"faces", scene.model.nface},
+                           {"dt_s", scene.model.dt_s},
+                           {"physics_us_per_step", report.physics_us_per_step},
+                           {"guard_restores", guard_restores}}}};
   report.json = root.dump(2) + "\n";
   io::write_file_atomic((std::filesystem::path(out_dir) / "report.json").string(), report.json);
   return report;

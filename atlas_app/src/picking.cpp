@@ -56,10 +56,9 @@ int32_t PickBvh::build_node(int32_t begin, int32_t end, std::vector<Eigen::Vecto
   int axis = 0;
   (hi - lo).maxCoeff(&axis);
   const int32_t mid = (begin + end) / 2;
-  std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
-                   [&](int32_t a, int32_t b) {
-                     return centroids[static_cast<size_t>(a)][axis] < centroids[static_cast<size_t>(b)][axis];
-                   });
+  std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end, [&](int32_t a, int32_t b) {
+    return centroids[static_cast<size_t>(a)][axis] < centroids[static_cast<size_t>(b)][axis];
+  });
   const int32_t left = build_node(begin, mid, centroids);
   const int32_t right = build_node(mid, end, centroids);
   nodes_[static_cast<size_t>(id)].left = left;
@@ -94,8 +93,8 @@ void PickBvh::refit_node(int32_t id) {
   n2.hi = l.hi.cwiseMax(r.hi);
 }
 
-PickHit PickBvh::intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& dir,
-                           const std::vector<bool>& visible, const Eigen::Vector4f& clip) const {
+PickHit PickBvh::intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& dir, const std::vector<bool>& visible,
+                           const Eigen::Vector4f& clip) const {
   PickHit hit;
   if (nodes_.empty()) return hit;
   float best = std::numeric_limits<float>::max();

@@ -11,8 +11,8 @@ namespace softatlas::app {
 
 void write_png(const std::string& path, int width, int height, const std::vector<uint8_t>& rgba) {
   if (rgba.size() != static_cast<size_t>(width) * height * 4)
-    throw std::runtime_error(path + ": pixel buffer does not match " + std::to_string(width) +
-                             "x" + std::to_string(height));
+    throw std::runtime_error(path + ": pixel buffer does not match " + std::to_string(width) + "x" +
+                             std::to_string(height));
   const std::string tmp = path + ".tmp";
   FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) throw std::runtime_error(path + ": cannot open for writing");
@@ -25,9 +25,8 @@ void write_png(const std::string& path, int width, int height, const std::vector
     throw std::runtime_error(path + ": libpng failed to write the image");
   }
   png_init_io(png, f);
-  png_set_IHDR(png, info, static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8,
-               PNG_COLOR_TYPE_RGBA, PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT,
-               PNG_FILTER_TYPE_DEFAULT);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(width), static_cast<png_uint_32>(height), 8, PNG_COLOR_TYPE_RGBA,
+               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   png_set_compression_level(png, 6);
   png_write_info(png, info);
   std::vector<png_bytep> rows(static_cast<size_t>(height));

@@ -152,8 +152,7 @@ Renderer::Renderer(const GlContext& context) : gl_(context.gl()) {
   gl_.EnableVertexAttribArray(0);
   gl_.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 7 * sizeof(float), nullptr);
   gl_.EnableVertexAttribArray(1);
-  gl_.VertexAttribPointer(1, 4, GL_FLOAT, GL_FALSE, 7 * sizeof(float),
-                          reinterpret_cast<void*>(3 * sizeof(float)));
+  gl_.VertexAttribPointer(1, 4, GL_FLOAT, GL_FALSE, 7 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
   gl_.GenVertexArrays(1, &imgui_vao_);
   gl_.GenBuffers(1, &imgui_vbo_);
   gl_.GenBuffers(1, &imgui_ebo_);
@@ -203,17 +202,16 @@ int Renderer::add_mesh(const std::vector<int32_t>& faces, size_t nvert) {
   gl_.GenBuffers(1, &m.ebo);
   gl_.BindVertexArray(m.vao);
   gl_.BindBuffer(GL_ARRAY_BUFFER, m.vbo);
-  gl_.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(m.interleaved.size() * sizeof(float)),
-                 nullptr, GL_DYNAMIC_DRAW);
+  gl_.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(m.interleaved.size() * sizeof(float)), nullptr,
+                 GL_DYNAMIC_DRAW);
   gl_.BindBuffer(GL_ELEMENT_ARRAY_BUFFER, m.ebo);
   std::vector<uint32_t> idx(faces.begin(), faces.end());
-  gl_.BufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(idx.size() * sizeof(uint32_t)),
-                 idx.data(), GL_STATIC_DRAW);
+  gl_.BufferData(GL_ELEMENT_ARRAY_BUFFER, static_cast<GLsizeiptr>(idx.size() * sizeof(uint32_t)), idx.data(),
+                 GL_STATIC_DRAW);
   gl_.EnableVertexAttribArray(0);
   gl_.VertexAttribPointer(0, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), nullptr);
   gl_.EnableVertexAttribArray(1);
-  gl_.VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float),
-                          reinterpret_cast<void*>(3 * sizeof(float)));
+  gl_.VertexAttribPointer(1, 3, GL_FLOAT, GL_FALSE, 6 * sizeof(float), reinterpret_cast<void*>(3 * sizeof(float)));
   gl_.BindVertexArray(0);
   meshes_.push_back(std::move(m));
   return static_cast<int>(meshes_.size()) - 1;
@@ -248,8 +246,7 @@ void Renderer::upload(Mesh& m) {
     const int32_t a = m.faces[3 * f], b = m.faces[3 * f + 1], c = m.faces[3 * f + 2];
     const float e1[3] = {v[6 * b] - v[6 * a], v[6 * b + 1] - v[6 * a + 1], v[6 * b + 2] - v[6 * a + 2]};
     const float e2[3] = {v[6 * c] - v[6 * a], v[6 * c + 1] - v[6 * a + 1], v[6 * c + 2] - v[6 * a + 2]};
-    const float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
-                        e1[0] * e2[1] - e1[1] * e2[0]};
+    const float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
     for (int32_t idx : {a, b, c})
       for (int k = 0; k < 3; ++k) v[6 * idx + 3 + k] += n[k];
   }
@@ -257,7 +254,8 @@ void Renderer::upload(Mesh& m) {
   for (size_t i = 0; i < m.nvert; ++i) {
     float* n = v + 6 * i + 3;
     const float len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    if (len > 0) for (int k = 0; k < 3; ++k) n[k] /= len;
+    if (len > 0)
+      for (int k = 0; k < 3; ++k) n[k] /= len;
     sum += Eigen::Vector3f(v[6 * i], v[6 * i + 1], v[6 * i + 2]);
   }
   if (m.nvert) m.centroid = sum / static_cast<float>(m.nvert);
@@ -293,8 +291,10 @@ void Renderer::draw_organs(const Camera& camera, const std::vector<OrganStyle>& 
   gl_.Uniform1i(gl_.GetUniformLocation(organ_program_, "u_ct"), ct_on_plane() ? 1 : 0);
   gl_.Enable(GL_DEPTH_TEST);
   gl_.DepthFunc(GL_LESS);
-  if (slice_.active()) gl_.Disable(GL_CULL_FACE);  // the cut shows the inside
-  else gl_.Enable(GL_CULL_FACE);
+  if (slice_.active())
+    gl_.Disable(GL_CULL_FACE);  // the cut shows the inside
+  else
+    gl_.Enable(GL_CULL_FACE);
   gl_.CullFace(GL_BACK);
   gl_.FrontFace(GL_CCW);
   auto draw = [&](size_t i) {
@@ -302,8 +302,7 @@ void Renderer::draw_organs(const Camera& camera, const std::vector<OrganStyle>& 
     gl_.Uniform4f(u_color, s.color[0], s.color[1], s.color[2], s.alpha);
     gl_.Uniform1f(u_highlight, s.highlight ? 1.0f : 0.0f);
     gl_.BindVertexArray(meshes_[i].vao);
-    gl_.DrawElements(GL_TRIANGLES, static_cast<GLsizei>(meshes_[i].faces.size()), GL_UNSIGNED_INT,
-                     nullptr);
+    gl_.DrawElements(GL_TRIANGLES, static_cast<GLsizei>(meshes_[i].faces.size()), GL_UNSIGNED_INT, nullptr);
   };
   const size_t n = std::min(styles.size(), meshes_.size());
   gl_.Disable(GL_BLEND);
@@ -340,8 +339,7 @@ void Renderer::draw_lines(const Camera& camera, const std::vector<Line>& lines) 
   gl_.UniformMatrix4fv(gl_.GetUniformLocation(line_program_, "u_mvp"), 1, GL_FALSE, mvp.data());
   gl_.BindVertexArray(line_vao_);
   gl_.BindBuffer(GL_ARRAY_BUFFER, line_vbo_);
-  gl_.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data(),
-                 GL_STREAM_DRAW);
+  gl_.BufferData(GL_ARRAY_BUFFER, static_cast<GLsizeiptr>(data.size() * sizeof(float)), data.data(), GL_STREAM_DRAW);
   gl_.Enable(GL_BLEND);
   gl_.BlendFuncSeparate(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA, GL_ZERO, GL_ONE);  // alpha kept
   gl_.DrawArrays(GL_LINES, 0, static_cast<GLsizei>(lines.size() * 2));
@@ -376,16 +374,18 @@ void Renderer::draw_cues(const Camera& camera, const Cues& cues) {
   draw_lines(camera, lines);
 }
 
-void add_arrow(std::vector<Line>& lines, const Eigen::Vector3f& a, const Eigen::Vector3f& b, const std::array<float, 4>& color) {
+void add_arrow(std::vector<Line>& lines, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
+               const std::array<float, 4>& color) {
   const Eigen::Vector3f d = b - a;
   const float len = d.norm();
   if (len <= 0) return;
   const Eigen::Vector3f u = d / len;
-  const Eigen::Vector3f p = u.cross(std::abs(u.x()) < 0.9f ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY()).normalized();
+  const Eigen::Vector3f p =
+      u.cross(std::abs(u.x()) < 0.9f ? Eigen::Vector3f::UnitX() : Eigen::Vector3f::UnitY()).normalized();
   const Eigen::Vector3f q = u.cross(p);
   // GL core lines are one pixel wide: a bundle of shafts 0.4 mm apart reads as a thick arrow.
-  for (const Eigen::Vector3f& o : {Eigen::Vector3f::Zero().eval(), Eigen::Vector3f(0.4f * p), Eigen::Vector3f(-0.4f * p),
-                                   Eigen::Vector3f(0.4f * q), Eigen::Vector3f(-0.4f * q)})
+  for (const Eigen::Vector3f& o : {Eigen::Vector3f::Zero().eval(), Eigen::Vector3f(0.4f * p),
+                                   Eigen::Vector3f(-0.4f * p), Eigen::Vector3f(0.4f * q), Eigen::Vector3f(-0.4f * q)})
     lines.push_back({a + o, b + o, color});
   const float h = std::min(0.3f * len, 8.0f);
   for (const Eigen::Vector3f& side : {p, q, Eigen::Vector3f(-p), Eigen::Vector3f(-q)})
@@ -401,8 +401,10 @@ Eigen::Vector4f SlicePlane::clip() const {
 }
 
 void Renderer::set_depth_test(bool on) {
-  if (on) gl_.Enable(GL_DEPTH_TEST);
-  else gl_.Disable(GL_DEPTH_TEST);
+  if (on)
+    gl_.Enable(GL_DEPTH_TEST);
+  else
+    gl_.Disable(GL_DEPTH_TEST);
 }
 
 void Renderer::draw_slice(const Camera& camera, const SlicePlane& plane) {
@@ -507,8 +509,8 @@ void Renderer::draw_imgui(const ImDrawData* data) {
   gl_.Enable(GL_SCISSOR_TEST);
   const float L = data->DisplayPos.x, R = L + data->DisplaySize.x;
   const float T = data->DisplayPos.y, B = T + data->DisplaySize.y;
-  const float ortho[16] = {2.0f / (R - L), 0, 0, 0, 0, 2.0f / (T - B), 0, 0, 0, 0, -1.0f, 0,
-                           (R + L) / (L - R), (T + B) / (B - T), 0, 1.0f};
+  const float ortho[16] = {2.0f / (R - L),    0, 0,   0, 0, 2.0f / (T - B), 0, 0, 0, 0, -1.0f, 0, (R + L) / (L - R),
+                           (T + B) / (B - T), 0, 1.0f};
   gl_.UseProgram(imgui_program_);
   gl_.Uniform1i(gl_.GetUniformLocation(imgui_program_, "u_tex"), 0);
   gl_.UniformMatrix4fv(gl_.GetUniformLocation(imgui_program_, "u_proj"), 1, GL_FALSE, ortho);

@@ -27,8 +27,7 @@ sim::Material material_from_spec(const io::MaterialSpec& spec, const PhysicsSett
 }  // namespace
 
 sim::SceneDesc scene_from_organ_set(const io::OrganSet& set, const std::vector<std::string>& shown,
-                                    const std::vector<std::string>& context,
-                                    const PhysicsSettings& physics) {
+                                    const std::vector<std::string>& context, const PhysicsSettings& physics) {
   const std::string where = (set.folder.empty() ? std::string("organ set") : set.folder + "/atlas.yaml");
   for (const auto* list : {&shown, &context})
     for (const std::string& n : *list)
@@ -76,8 +75,8 @@ sim::SceneDesc scene_from_organ_set(const io::OrganSet& set, const std::vector<s
   return d;
 }
 
-AtlasScene::AtlasScene(io::OrganSet set, std::vector<std::string> shown,
-                       std::vector<std::string> context, const PhysicsSettings& physics)
+AtlasScene::AtlasScene(io::OrganSet set, std::vector<std::string> shown, std::vector<std::string> context,
+                       const PhysicsSettings& physics)
     : set_(std::move(set)) {
   if (shown.empty())
     for (const auto& o : set_.organs) shown.push_back(o.name);
@@ -109,22 +108,34 @@ OrganInfo organ_info(const std::string& n) {
   // names and the system an anatomy atlas files them under. The organs of the demo atlases and
   // of the sample CTs, plus their close neighbours.
   static const std::pair<const char*, OrganInfo> table[] = {
-      {"liver", {"Liver", "digestive"}},           {"stomach", {"Stomach", "digestive"}},
-      {"pancreas", {"Pancreas", "digestive"}},     {"gallbladder", {"Gallbladder", "digestive"}},
-      {"esophagus", {"Esophagus", "digestive"}},   {"duodenum", {"Duodenum", "digestive"}},
-      {"colon", {"Colon", "digestive"}},           {"small_bowel", {"Small intestine", "digestive"}},
-      {"spleen", {"Spleen", "lymphatic"}},         {"kidney_right", {"Right kidney", "urinary"}},
-      {"kidney_left", {"Left kidney", "urinary"}}, {"urinary_bladder", {"Urinary bladder", "urinary"}},
+      {"liver", {"Liver", "digestive"}},
+      {"stomach", {"Stomach", "digestive"}},
+      {"pancreas", {"Pancreas", "digestive"}},
+      {"gallbladder", {"Gallbladder", "digestive"}},
+      {"esophagus", {"Esophagus", "digestive"}},
+      {"duodenum", {"Duodenum", "digestive"}},
+      {"colon", {"Colon", "digestive"}},
+      {"small_bowel", {"Small intestine", "digestive"}},
+      {"spleen", {"Spleen", "lymphatic"}},
+      {"kidney_right", {"Right kidney", "urinary"}},
+      {"kidney_left", {"Left kidney", "urinary"}},
+      {"urinary_bladder", {"Urinary bladder", "urinary"}},
       {"adrenal_gland_right", {"Right suprarenal gland", "endocrine"}},
       {"adrenal_gland_left", {"Left suprarenal gland", "endocrine"}},
-      {"trachea", {"Trachea", "respiratory"}},     {"heart", {"Heart", "cardiovascular"}},
-      {"aorta", {"Aorta", "cardiovascular"}},      {"pulmonary_artery", {"Pulmonary trunk", "cardiovascular"}},
+      {"trachea", {"Trachea", "respiratory"}},
+      {"heart", {"Heart", "cardiovascular"}},
+      {"aorta", {"Aorta", "cardiovascular"}},
+      {"pulmonary_artery", {"Pulmonary trunk", "cardiovascular"}},
       {"inferior_vena_cava", {"Inferior vena cava", "cardiovascular"}},
       {"portal_vein_and_splenic_vein", {"Portal and splenic vein", "cardiovascular"}},
-      {"spinal_cord", {"Spinal cord", "nervous"}}, {"vertebrae_L5", {"Fifth lumbar vertebra", "skeletal"}},
-      {"vertebrae_L1", {"First lumbar vertebra", "skeletal"}}, {"sacrum", {"Sacrum", "skeletal"}},
-      {"hip_left", {"Left hip bone", "skeletal"}}, {"hip_right", {"Right hip bone", "skeletal"}},
-      {"coccyx", {"Coccyx", "skeletal"}},          {"pelvis", {"Bony pelvis", "skeletal"}},
+      {"spinal_cord", {"Spinal cord", "nervous"}},
+      {"vertebrae_L5", {"Fifth lumbar vertebra", "skeletal"}},
+      {"vertebrae_L1", {"First lumbar vertebra", "skeletal"}},
+      {"sacrum", {"Sacrum", "skeletal"}},
+      {"hip_left", {"Left hip bone", "skeletal"}},
+      {"hip_right", {"Right hip bone", "skeletal"}},
+      {"coccyx", {"Coccyx", "skeletal"}},
+      {"pelvis", {"Bony pelvis", "skeletal"}},
   };
   for (const auto& [key, info] : table)
     if (n == key) return info;
@@ -195,8 +206,7 @@ namespace {
 std::vector<int32_t> within(const std::vector<double>& V, const Eigen::Vector3d& c, double r) {
   std::vector<int32_t> out;
   for (size_t i = 0; i < V.size() / 3; ++i)
-    if ((Eigen::Vector3d(V[3 * i], V[3 * i + 1], V[3 * i + 2]) - c).norm() <= r)
-      out.push_back(static_cast<int32_t>(i));
+    if ((Eigen::Vector3d(V[3 * i], V[3 * i + 1], V[3 * i + 2]) - c).norm() <= r) out.push_back(static_cast<int32_t>(i));
   return out;
 }
 }  // namespace
@@ -204,18 +214,28 @@ std::vector<int32_t> within(const std::vector<double>& V, const Eigen::Vector3d&
 std::vector<int32_t> AtlasScene::region_vertices(int v, const std::string& region, double radius_mm) const {
   const auto& V = set_.organs[static_cast<size_t>(view_organs_[static_cast<size_t>(v)])].mesh.vertices;
   Eigen::Vector3d dir;
-  if (region == "anterior") dir = {0, 1, 0};
-  else if (region == "posterior") dir = {0, -1, 0};
-  else if (region == "superior") dir = {0, 0, 1};
-  else if (region == "inferior") dir = {0, 0, -1};
-  else if (region == "right") dir = {1, 0, 0};   // RAS: +x is the patient's right
-  else if (region == "left") dir = {-1, 0, 0};
-  else return {};
+  if (region == "anterior")
+    dir = {0, 1, 0};
+  else if (region == "posterior")
+    dir = {0, -1, 0};
+  else if (region == "superior")
+    dir = {0, 0, 1};
+  else if (region == "inferior")
+    dir = {0, 0, -1};
+  else if (region == "right")
+    dir = {1, 0, 0};  // RAS: +x is the patient's right
+  else if (region == "left")
+    dir = {-1, 0, 0};
+  else
+    return {};
   double best = -std::numeric_limits<double>::max();
   size_t bi = 0;
   for (size_t i = 0; i < V.size() / 3; ++i) {
     const double s = dir.dot(Eigen::Vector3d(V[3 * i], V[3 * i + 1], V[3 * i + 2]));
-    if (s > best) { best = s; bi = i; }
+    if (s > best) {
+      best = s;
+      bi = i;
+    }
   }
   return within(V, Eigen::Vector3d(V[3 * bi], V[3 * bi + 1], V[3 * bi + 2]), radius_mm);
 }
@@ -226,7 +246,10 @@ std::vector<int32_t> AtlasScene::landmark_vertices(int v, const Eigen::Vector3d&
   size_t bi = 0;
   for (size_t i = 0; i < V.size() / 3; ++i) {
     const double d = (Eigen::Vector3d(V[3 * i], V[3 * i + 1], V[3 * i + 2]) - p).norm();
-    if (d < best) { best = d; bi = i; }
+    if (d < best) {
+      best = d;
+      bi = i;
+    }
   }
   return within(V, Eigen::Vector3d(V[3 * bi], V[3 * bi + 1], V[3 * bi + 2]), radius_mm);
 }

@@ -115,7 +115,8 @@ void Viewer::begin() {
   camera.height = context_.height();
   ImGuiIO& io = ImGui::GetIO();
   renderer_->prepare_imgui_fonts();
-  if (glfw_backend_) ImGui_ImplGlfw_NewFrame();
+  if (glfw_backend_)
+    ImGui_ImplGlfw_NewFrame();
   else {
     io.DisplaySize = ImVec2(static_cast<float>(camera.width), static_cast<float>(camera.height));
     io.DeltaTime = 1.0f / 60.0f;
@@ -160,7 +161,8 @@ void Viewer::update_slice_image() {
     const auto& m = ct.ijk_to_ras;
     spacing = std::min(spacing, std::sqrt(m[c] * m[c] + m[4 + c] * m[4 + c] + m[8 + c] * m[8 + c]));
   }
-  const double lu = b[u] - 0.5 * spacing, hu = b[u + 3] + 0.5 * spacing, lv = b[v] - 0.5 * spacing, hv = b[v + 3] + 0.5 * spacing;
+  const double lu = b[u] - 0.5 * spacing, hu = b[u + 3] + 0.5 * spacing, lv = b[v] - 0.5 * spacing,
+               hv = b[v + 3] + 0.5 * spacing;
   const int w = std::clamp(static_cast<int>(std::ceil((hu - lu) / spacing)), 2, 1024);
   const int h = std::clamp(static_cast<int>(std::ceil((hv - lv) / spacing)), 2, 1024);
   const io::CtRecord& rec = *scene_.set().ct;
@@ -174,7 +176,8 @@ void Viewer::update_slice_image() {
       p[v] = lv + (j + 0.5) * (hv - lv) / h;
       float x;
       if (!ct.sample(p, &x)) continue;
-      const uint8_t g = static_cast<uint8_t>(std::lround(255.0 * std::clamp((x - lo_hu) / rec.window_width_hu, 0.0, 1.0)));
+      const uint8_t g =
+          static_cast<uint8_t>(std::lround(255.0 * std::clamp((x - lo_hu) / rec.window_width_hu, 0.0, 1.0)));
       uint8_t* px = &rgba[4 * (static_cast<size_t>(j) * w + i)];
       px[0] = px[1] = px[2] = g;
       px[3] = 255;
@@ -226,7 +229,8 @@ void Viewer::end() {
     if (!label_anchor(v, anchor)) continue;
     if (labeled[v]) {
       float x, y;
-      if (camera.project(anchor, x, y)) tags.push_back({ImVec2(x, y), ImVec2(x, y), ImGui::CalcTextSize(text.c_str()), text});
+      if (camera.project(anchor, x, y))
+        tags.push_back({ImVec2(x, y), ImVec2(x, y), ImGui::CalcTextSize(text.c_str()), text});
     } else if (hover_names && static_cast<int>(v) == hovered) {
       label(anchor, text, IM_COL32(255, 255, 255, 255));
     }
@@ -237,8 +241,10 @@ void Viewer::end() {
     for (Tag& t : tags) {
       float dx = t.anchor.x - c.x, dy = t.anchor.y - c.y;
       const float len = std::sqrt(dx * dx + dy * dy);
-      if (len < 1.0f) dx = 0, dy = -1;
-      else dx /= len, dy /= len;
+      if (len < 1.0f)
+        dx = 0, dy = -1;
+      else
+        dx /= len, dy /= len;
       t.pos = ImVec2(t.anchor.x + 60.0f * dx - 0.5f * t.size.x, t.anchor.y + 60.0f * dy - 0.5f * t.size.y);
     }
     std::sort(tags.begin(), tags.end(), [](const Tag& a, const Tag& b) { return a.pos.y < b.pos.y; });
@@ -284,7 +290,8 @@ void Viewer::end() {
     }
     if (!caption.text.empty()) ImGui::TextWrapped("%s", overlay_text(caption.text).c_str());
     if (!caption.status.empty()) {
-      ImGui::PushStyleColor(ImGuiCol_Text, caption.ok ? ImVec4(0.4f, 1.0f, 0.4f, 1.0f) : ImVec4(1.0f, 0.45f, 0.4f, 1.0f));
+      ImGui::PushStyleColor(ImGuiCol_Text,
+                            caption.ok ? ImVec4(0.4f, 1.0f, 0.4f, 1.0f) : ImVec4(1.0f, 0.45f, 0.4f, 1.0f));
       ImGui::TextWrapped("%s", overlay_text(caption.status).c_str());
       ImGui::PopStyleColor();
     }

@@ -29,8 +29,8 @@ void project_psd(double K[9]) {
 
 // ---- sizing ------------------------------------------------------------------------------------
 
-CouplingParams size_coupling(double device_max_stiffness_N_m, double rate_hz, double device_period_s,
-                             double margin, double damping_fraction) {
+CouplingParams size_coupling(double device_max_stiffness_N_m, double rate_hz, double device_period_s, double margin,
+                             double damping_fraction) {
   CouplingParams c;
   c.period_s = 1.0 / rate_hz;
   // Colgate & Schenkel 1997 eq 9, b > K T / 2 + |B|: the device's physical damping implied by
@@ -245,7 +245,8 @@ void CouplingPhysics::apply(const sim::Model& m, sim::State& s, const ToolComman
   }
   if (attached_) {
     proxy_ = cmd.proxy_m;
-    sim::move_attachment(s, {proxy_[0] - contact_point_[0], proxy_[1] - contact_point_[1], proxy_[2] - contact_point_[2]});
+    sim::move_attachment(s,
+                         {proxy_[0] - contact_point_[0], proxy_[1] - contact_point_[1], proxy_[2] - contact_point_[2]});
   }
 }
 

@@ -83,7 +83,8 @@ struct Ctx {
       f();
     } catch (const Skip&) {
     } catch (const YAML::Exception& e) {
-      report_at(std::max(1, e.mark.line + 1), std::max(1, e.mark.column + 1), "unexpected YAML structure here (" + e.msg + ")");
+      report_at(std::max(1, e.mark.line + 1), std::max(1, e.mark.column + 1),
+                "unexpected YAML structure here (" + e.msg + ")");
     }
   }
   // Throws CheckErrors with every recorded error, sorted by line and column (stable).
@@ -111,7 +112,8 @@ struct Ctx {
       const std::string key = kv.first.Scalar();
       const auto [it, fresh] = seen.emplace(key, kv.first.Mark().line + 1);
       if (!fresh) {
-        report(kv.first, "duplicate key '" + key + "' in " + name + " (first given on line " + std::to_string(it->second) + ")");
+        report(kv.first,
+               "duplicate key '" + key + "' in " + name + " (first given on line " + std::to_string(it->second) + ")");
         continue;
       }
       bool ok = false;
@@ -132,8 +134,8 @@ struct Ctx {
   static bool looks_typed(const YAML::Node& n) {
     if (n.Tag() != "?") return false;  // quoted: text
     const std::string& s = n.Scalar();
-    static const char* words[] = {"true", "false", "True", "False", "TRUE", "FALSE", "yes", "no", "on", "off",
-                                  "null", "Null", "NULL", "~", ""};
+    static const char* words[] = {"true", "false", "True", "False", "TRUE", "FALSE", "yes", "no",
+                                  "on",   "off",   "null", "Null",  "NULL", "~",     ""};
     for (const char* w : words)
       if (s == w) return true;
     return is_number(s);
@@ -157,7 +159,8 @@ struct Ctx {
   }
   double num(const YAML::Node& n, const std::string& name, double lo, double hi) const {
     if (!n.IsScalar()) fail(n, "'" + name + "' must be a number");
-    if (n.Tag() != "?") fail(n, "'" + name + "' must be a number, got the text \"" + n.Scalar() + "\" (remove the quotes)");
+    if (n.Tag() != "?")
+      fail(n, "'" + name + "' must be a number, got the text \"" + n.Scalar() + "\" (remove the quotes)");
     if (!is_number(n.Scalar())) fail(n, "'" + name + "' must be a number, got '" + n.Scalar() + "'");
     const double v = std::stod(n.Scalar());
     if (!std::isfinite(v) || v < lo || v > hi)
@@ -181,10 +184,12 @@ struct Ctx {
   // A name or a list of names.
   std::vector<std::string> names(const YAML::Node& n, const std::string& name) const {
     std::vector<std::string> out;
-    if (n.IsScalar()) out.push_back(str(n, name));
+    if (n.IsScalar())
+      out.push_back(str(n, name));
     else if (n.IsSequence()) {
       for (const auto& e : n) guard([&] { out.push_back(str(e, name)); });
-    } else fail(n, "'" + name + "' must be an organ name or a list of organ names");
+    } else
+      fail(n, "'" + name + "' must be an organ name or a list of organ names");
     if (out.empty() && n.IsSequence() && n.size() == 0) fail(n, "'" + name + "' must name at least one organ");
     return out;
   }
@@ -225,9 +230,15 @@ inline bool strict_scan(const Ctx& c, const std::string& text) {
         size_t j = i + 1;
         bool closed = false;
         for (; j < l.size(); ++j) {
-          if (ch == '"' && l[j] == '\\') { ++j; continue; }
+          if (ch == '"' && l[j] == '\\') {
+            ++j;
+            continue;
+          }
           if (l[j] == ch) {
-            if (ch == '\'' && j + 1 < l.size() && l[j + 1] == '\'') { ++j; continue; }
+            if (ch == '\'' && j + 1 < l.size() && l[j + 1] == '\'') {
+              ++j;
+              continue;
+            }
             closed = true;
             break;
           }
@@ -246,7 +257,8 @@ inline bool strict_scan(const Ctx& c, const std::string& text) {
         continue;
       }
       if (ch == ' ') {
-        if (last_sig == ':' || last_sig == '-' || last_sig == ',' || last_sig == '[' || last_sig == '{' || last_sig == '?')
+        if (last_sig == ':' || last_sig == '-' || last_sig == ',' || last_sig == '[' || last_sig == '{' ||
+            last_sig == '?')
           token_start = true;
         continue;
       }

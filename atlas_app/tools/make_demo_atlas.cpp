@@ -91,7 +91,9 @@ softatlas::pipeline::Volume patches_to_mask(const std::vector<const Patch*>& pat
   vol.format = "nifti";
   const int nx = vol.dims[0], ny = vol.dims[1], nz = vol.dims[2];
   std::vector<uint8_t> m(static_cast<size_t>(nx) * ny * nz, 0);
-  auto id = [&](int i, int j, int k) { return static_cast<size_t>(i) + static_cast<size_t>(nx) * (j + static_cast<size_t>(ny) * k); };
+  auto id = [&](int i, int j, int k) {
+    return static_cast<size_t>(i) + static_cast<size_t>(nx) * (j + static_cast<size_t>(ny) * k);
+  };
   for (const Patch* p : patches)
     for (size_t f = 0; f < p->mesh.face_count(); ++f) {
       const double* a = &p->mesh.vertices[3 * p->mesh.faces[3 * f]];
@@ -101,7 +103,8 @@ softatlas::pipeline::Volume patches_to_mask(const std::vector<const Patch*>& pat
       for (int e = 0; e < 3; ++e) {
         const double* u = e == 0 ? a : e == 1 ? b : c;
         const double* w = e == 0 ? b : e == 1 ? c : a;
-        longest = std::max(longest, std::sqrt((u[0] - w[0]) * (u[0] - w[0]) + (u[1] - w[1]) * (u[1] - w[1]) + (u[2] - w[2]) * (u[2] - w[2])));
+        longest = std::max(longest, std::sqrt((u[0] - w[0]) * (u[0] - w[0]) + (u[1] - w[1]) * (u[1] - w[1]) +
+                                              (u[2] - w[2]) * (u[2] - w[2])));
       }
       const int n = std::max(1, static_cast<int>(std::ceil(longest / (0.4 * voxel_mm))));
       for (int s = 0; s <= n; ++s)
@@ -138,7 +141,8 @@ softatlas::pipeline::Volume patches_to_mask(const std::vector<const Patch*>& pat
   while (!queue.empty()) {
     const size_t x = queue.front();
     queue.pop_front();
-    const int i = static_cast<int>(x % nx), j = static_cast<int>((x / nx) % ny), k = static_cast<int>(x / (static_cast<size_t>(nx) * ny));
+    const int i = static_cast<int>(x % nx), j = static_cast<int>((x / nx) % ny),
+              k = static_cast<int>(x / (static_cast<size_t>(nx) * ny));
     const int nb[6][3] = {{i - 1, j, k}, {i + 1, j, k}, {i, j - 1, k}, {i, j + 1, k}, {i, j, k - 1}, {i, j, k + 1}};
     for (const auto& q : nb) {
       if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= nx || q[1] >= ny || q[2] >= nz) continue;
@@ -165,7 +169,16 @@ int main(int argc, char** argv) {
   try {
     // name, file, sub-mesh filter ("" = all; "_L" / "_R" / "sacrum" select the pelvis parts),
     // TotalSegmentator label, FMA id, face budget, rigid, DOI
-    struct In { const char* name; const char* file; const char* part; int label; const char* fma; int faces; bool rigid; const char* doi; };
+    struct In {
+      const char* name;
+      const char* file;
+      const char* part;
+      int label;
+      const char* fma;
+      int faces;
+      bool rigid;
+      const char* doi;
+    };
     const In inputs[] = {
         {"heart", "VH_M_Heart.glb", "", 51, "FMA7088", 2400, false, "10.48539/HBM373.VSTV.568"},
         {"liver", "VH_M_Liver.glb", "", 5, "FMA7197", 3000, false, "10.48539/HBM677.HVRF.764"},
@@ -188,7 +201,7 @@ int main(int argc, char** argv) {
       std::vector<const Patch*> parts;
       const std::string part = in.part;
       for (const Patch& p : files[in.file]) {
-        const bool keep = part.empty() ? true
+        const bool keep = part.empty()       ? true
                           : part == "sacrum" ? (p.name == "sacrum" || p.name == "coccyx")
                                              : (p.name.size() > 2 && p.name.compare(p.name.size() - 2, 2, part) == 0 &&
                                                 p.name.find("compact") != std::string::npos);
@@ -233,7 +246,8 @@ int main(int argc, char** argv) {
         e.fixed_vertices.erase(std::unique(e.fixed_vertices.begin(), e.fixed_vertices.end()), e.fixed_vertices.end());
       }
       std::fprintf(stderr, "%-13s %2zu sub-meshes, mask %zu voxels, V %5zu F %5zu, %.1f mL, repairs:", in.name,
-                   parts.size(), surf.mask_voxels, e.mesh.vertex_count(), e.mesh.face_count(), softatlas::pipeline::inspect_surface(e.mesh).signed_volume_mm3 / 1000.0);
+                   parts.size(), surf.mask_voxels, e.mesh.vertex_count(), e.mesh.face_count(),
+                   softatlas::pipeline::inspect_surface(e.mesh).signed_volume_mm3 / 1000.0);
       for (const auto& r : rem.repairs) std::fprintf(stderr, " %s", r.c_str());
       std::fprintf(stderr, ", Hausdorff %.2f mm\n", rem.hausdorff_mm);
       // Named regions: each sub-mesh's vertex nearest to its centroid (a point on the source
@@ -254,16 +268,19 @@ int main(int argc, char** argv) {
         std::string rname = p->name;
         for (const char* side : {"_L", "_R"})
           if (rname.size() > 2 && rname.compare(rname.size() - 2, 2, side) == 0) rname.resize(rname.size() - 2);
-        for (const char* suffix : {"_of_the_pancreas", "_of_pancreas", "_of_liver", "_of_spleen", "_of_kidney", "_of_heart"}) {
+        for (const char* suffix :
+             {"_of_the_pancreas", "_of_pancreas", "_of_liver", "_of_spleen", "_of_kidney", "_of_heart"}) {
           const std::string suf = suffix;
           if (rname.size() > suf.size() && rname.compare(rname.size() - suf.size(), suf.size(), suf) == 0)
             rname.resize(rname.size() - suf.size());
         }
         if (e.find_region(rname)) rname = p->name;  // keep names unique
         const double* q = &p->mesh.vertices[3 * best];
-        e.regions.push_back({rname, {std::round(q[0] * 10) / 10, std::round(q[1] * 10) / 10, std::round(q[2] * 10) / 10}});
+        e.regions.push_back(
+            {rname, {std::round(q[0] * 10) / 10, std::round(q[1] * 10) / 10, std::round(q[2] * 10) / 10}});
         char buf[256];
-        std::snprintf(buf, sizeof buf, "| %s | %s | %s | %.1f, %.1f, %.1f |\n", in.name, rname.c_str(), p->name.c_str(), q[0], q[1], q[2]);
+        std::snprintf(buf, sizeof buf, "| %s | %s | %s | %.1f, %.1f, %.1f |\n", in.name, rname.c_str(), p->name.c_str(),
+                      q[0], q[1], q[2]);
         regions << buf;
       }
       set.organs.push_back(std::move(e));
@@ -279,21 +296,28 @@ int main(int argc, char** argv) {
     set.connections = softatlas::pipeline::connect_organs(set.organs, co, &pairs);
     // springs between two bones can do nothing (sim::compile leaves them out too)
     auto rigid = [&](const std::string& n) { return set.find(n)->material.model == "rigid"; };
-    set.connections.erase(std::remove_if(set.connections.begin(), set.connections.end(),
-                                         [&](const softatlas::io::Connection& c) { return rigid(c.organ_a) && rigid(c.organ_b); }),
-                          set.connections.end());
+    set.connections.erase(
+        std::remove_if(set.connections.begin(), set.connections.end(),
+                       [&](const softatlas::io::Connection& c) { return rigid(c.organ_a) && rigid(c.organ_b); }),
+        set.connections.end());
     for (const auto& p : pairs)
-      if (p.springs && !(rigid(p.organ_a) && rigid(p.organ_b))) std::fprintf(stderr, "connections %s-%s: %zu (closest %.1f mm)\n", p.organ_a.c_str(), p.organ_b.c_str(), p.springs, p.closest_mm);
-    set.provenance["source"] = "HuBMAP CCF 3D Reference Object Library v1.3, Visible Human Male (hubmapconsortium/ccf-releases v1.3/models)";
-    set.provenance["license"] = "CC BY 4.0, Kristen Browne, Heidi Schlehlein et al., HuBMAP CCF 3D Reference Object Library";
+      if (p.springs && !(rigid(p.organ_a) && rigid(p.organ_b)))
+        std::fprintf(stderr, "connections %s-%s: %zu (closest %.1f mm)\n", p.organ_a.c_str(), p.organ_b.c_str(),
+                     p.springs, p.closest_mm);
+    set.provenance["source"] =
+        "HuBMAP CCF 3D Reference Object Library v1.3, Visible Human Male (hubmapconsortium/ccf-releases v1.3/models)";
+    set.provenance["license"] =
+        "CC BY 4.0, Kristen Browne, Heidi Schlehlein et al., HuBMAP CCF 3D Reference Object Library";
     set.provenance["generator"] = "atlas_app/tools/make_demo_atlas.cpp";
-    set.provenance["transform"] = "glTF metres (+X left, +Y superior, +Z anterior) to RAS mm: (x, y, z) -> (-1000 x, 1000 z, 1000 y)";
+    set.provenance["transform"] =
+        "glTF metres (+X left, +Y superior, +Z anterior) to RAS mm: (x, y, z) -> (-1000 x, 1000 z, 1000 y)";
     char vox[32];
     std::snprintf(vox, sizeof vox, "%g", voxel_mm);
     set.provenance["repair"] = std::string("sub-meshes scan-converted to a ") + vox +
                                " mm mask, closed (2 voxels), pipeline::label_surface, pipeline::repair_and_remesh";
     std::string doi_lines;
-    for (const In& in : inputs) doi_lines += std::string("| ") + in.name + " | " + in.file + " | https://doi.org/" + in.doi + " |\n";
+    for (const In& in : inputs)
+      doi_lines += std::string("| ") + in.name + " | " + in.file + " | https://doi.org/" + in.doi + " |\n";
     const std::string license =
         "# Demo organ set: license and attribution\n\n"
         "The meshes in `organs/` are derived from the HuBMAP Human Reference Atlas, Visible Human Male\n"
@@ -301,7 +325,8 @@ int main(int argc, char** argv) {
         "> Kristen Browne, Heidi Schlehlein et al., *HuBMAP CCF 3D Reference Object Library*, v1.3,\n"
         "> licensed under Creative Commons Attribution 4.0 International (CC BY 4.0),\n"
         "> https://creativecommons.org/licenses/by/4.0/ . Source: hubmapconsortium/ccf-releases, v1.3/models.\n\n"
-        "| structure | source file | DOI |\n| --- | --- | --- |\n" + doi_lines +
+        "| structure | source file | DOI |\n| --- | --- | --- |\n" +
+        doi_lines +
         "\nChanges: converted from glTF metres (+X left, +Y superior, +Z anterior) to RAS millimetres;\n"
         "each organ's sub-meshes scan-converted to a mask, closed and remeshed to a closed surface\n"
         "(SoftAtlas pipeline); the pelvis split into left and right hip bones (compact bone of ilium,\n"
@@ -310,7 +335,8 @@ int main(int argc, char** argv) {
         "## Named regions (landmarks)\n\n"
         "One per source sub-mesh: its vertex nearest to its centroid, RAS mm, stored in atlas.yaml as the\n"
         "organ's `regions` (a lesson grasps there with `region: NAME`, docs/lessons.md).\n\n"
-        "| structure | region | source sub-mesh | point (R, A, S) mm |\n| --- | --- | --- | --- |\n" + regions.str();
+        "| structure | region | source sub-mesh | point (R, A, S) mm |\n| --- | --- | --- | --- |\n" +
+        regions.str();
     size_t faces = 0;
     for (auto& o : set.organs) faces += o.mesh.face_count();
     std::fprintf(stderr, "total faces %zu, connections %zu\n", faces, set.connections.size());

@@ -21,7 +21,8 @@ std::array<double, 3> CtImage::world(double i, double j, double k) const {
 
 std::array<double, 3> CtImage::voxel(const std::array<double, 3>& p) const {
   const auto& a = ijk_to_ras;
-  const double m00 = a[0], m01 = a[1], m02 = a[2], m10 = a[4], m11 = a[5], m12 = a[6], m20 = a[8], m21 = a[9], m22 = a[10];
+  const double m00 = a[0], m01 = a[1], m02 = a[2], m10 = a[4], m11 = a[5], m12 = a[6], m20 = a[8], m21 = a[9],
+               m22 = a[10];
   const double det = m00 * (m11 * m22 - m12 * m21) - m01 * (m10 * m22 - m12 * m20) + m02 * (m10 * m21 - m11 * m20);
   const double q0 = p[0] - a[3], q1 = p[1] - a[7], q2 = p[2] - a[11];
   return {((m11 * m22 - m12 * m21) * q0 + (m02 * m21 - m01 * m22) * q1 + (m01 * m12 - m02 * m11) * q2) / det,
@@ -71,8 +72,9 @@ std::string encode_ct_nifti_gz(const CtImage& ct) {
   auto put_i16 = [&](int off, int16_t x) { std::memcpy(h + off, &x, 2); };
   auto put_f32 = [&](int off, float x) { std::memcpy(h + off, &x, 4); };
   put_i32(0, 348);
-  const int16_t dim[8] = {3, static_cast<int16_t>(ct.dims[0]), static_cast<int16_t>(ct.dims[1]),
-                          static_cast<int16_t>(ct.dims[2]), 1, 1, 1, 1};
+  const int16_t dim[8] = {
+      3, static_cast<int16_t>(ct.dims[0]), static_cast<int16_t>(ct.dims[1]), static_cast<int16_t>(ct.dims[2]), 1, 1, 1,
+      1};
   std::memcpy(h + 40, dim, 16);
   put_i16(70, 4);   // DT_INT16
   put_i16(72, 16);  // bitpix
@@ -85,7 +87,7 @@ std::string encode_ct_nifti_gz(const CtImage& ct) {
   put_f32(112, 1.0f);    // scl_slope: the values are HU
   h[123] = 2;            // xyzt_units: mm
   std::snprintf(reinterpret_cast<char*>(h + 148), 80, "softatlas organ set CT (HU)");
-  put_i16(254, 1);       // sform_code: scanner anatomical; qform unset
+  put_i16(254, 1);  // sform_code: scanner anatomical; qform unset
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 4; ++c) put_f32(280 + r * 16 + c * 4, static_cast<float>(a[r * 4 + c]));
   std::memcpy(h + 344, "n+1\0", 4);
@@ -143,17 +145,23 @@ CtImage read_ct_nifti(const std::string& path, bool header_only) {
   if (nd < 3 || nd > 7) throw bad("dim[0]", "expected a 3-D volume");
   for (int d = 1; d <= nd; ++d) {
     const int n = i16(40 + 2 * d);
-    if (d <= 3 && (n < 1 || n > 4096)) throw bad("dim[" + std::to_string(d) + "]", "expected 1..4096, got " + std::to_string(n));
+    if (d <= 3 && (n < 1 || n > 4096))
+      throw bad("dim[" + std::to_string(d) + "]", "expected 1..4096, got " + std::to_string(n));
     if (d > 3 && n != 1) throw bad("dim[" + std::to_string(d) + "]", "expected a 3-D volume (dim[4..7] = 1)");
     if (d <= 3) ct.dims[d - 1] = n;
   }
   const int datatype = i16(70);
   int bytes = 0;
-  if (datatype == 2) bytes = 1;        // uint8
-  else if (datatype == 4) bytes = 2;   // int16
-  else if (datatype == 8) bytes = 4;   // int32
-  else if (datatype == 16) bytes = 4;  // float32
-  else throw bad("datatype", "expected int16, uint8, int32 or float32, got " + std::to_string(datatype));
+  if (datatype == 2)
+    bytes = 1;  // uint8
+  else if (datatype == 4)
+    bytes = 2;  // int16
+  else if (datatype == 8)
+    bytes = 4;  // int32
+  else if (datatype == 16)
+    bytes = 4;  // float32
+  else
+    throw bad("datatype", "expected int16, uint8, int32 or float32, got " + std::to_string(datatype));
   const double vox_offset = f32(108);
   if (!(vox_offset >= 348 && vox_offset <= 1e6) || vox_offset != std::floor(vox_offset))
     throw bad("vox_offset", "expected a whole number of bytes in 348..1e6");
@@ -183,8 +191,8 @@ CtImage read_ct_nifti(const std::string& path, bool header_only) {
   for (int k = 0; k < 12; ++k)
     if (!std::isfinite(a[k]) || std::abs(a[k]) > (k % 4 == 3 ? 1e4 : 1e3))
       throw bad("srow", "voxel-to-world transform must be finite (axes <= 1000 mm, origin within 10 m)");
-  const double det = a[0] * (a[5] * a[10] - a[6] * a[9]) - a[1] * (a[4] * a[10] - a[6] * a[8]) +
-                     a[2] * (a[4] * a[9] - a[5] * a[8]);
+  const double det =
+      a[0] * (a[5] * a[10] - a[6] * a[9]) - a[1] * (a[4] * a[10] - a[6] * a[8]) + a[2] * (a[4] * a[9] - a[5] * a[8]);
   if (!(std::abs(det) > 1e-9)) throw bad("srow", "voxel-to-world transform is singular");
   const size_t n = static_cast<size_t>(ct.dims[0]) * ct.dims[1] * ct.dims[2];
   if (n > 512u * 1024u * 1024u) throw bad("dim", "more than 512 M voxels");
@@ -205,7 +213,8 @@ CtImage read_ct_nifti(const std::string& path, bool header_only) {
     got += static_cast<size_t>(r);
   }
   if (got != data.size())
-    throw InputError(path, "truncated CT: " + std::to_string(got) + " bytes of voxels, header needs " + std::to_string(data.size()));
+    throw InputError(
+        path, "truncated CT: " + std::to_string(got) + " bytes of voxels, header needs " + std::to_string(data.size()));
   ct.hu.resize(n);
   for (size_t i = 0; i < n; ++i) {
     double x = 0;

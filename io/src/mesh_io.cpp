@@ -46,8 +46,7 @@ std::string read_text_file(const std::string& path) {
 void write_file_atomic(const std::string& path, const std::string& text) {
   const fs::path target(path);
   const fs::path dir = target.has_parent_path() ? target.parent_path() : fs::path(".");
-  const std::string tmp = (dir / ("." + target.filename().string() + ".tmp." +
-                                  std::to_string(::getpid()))).string();
+  const std::string tmp = (dir / ("." + target.filename().string() + ".tmp." + std::to_string(::getpid()))).string();
   {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
     if (!out) throw InputError(path, std::string("cannot write: ") + std::strerror(errno));
@@ -84,9 +83,8 @@ void validate_mesh(const TriMesh& mesh, const std::string& where) {
   const int64_t nv = static_cast<int64_t>(mesh.vertex_count());
   for (size_t f = 0; f < mesh.faces.size(); ++f)
     if (mesh.faces[f] < 0 || mesh.faces[f] >= nv)
-      throw InputError(where, "face " + std::to_string(f / 3) + " uses vertex index " +
-                                  std::to_string(mesh.faces[f]) + ", expected 0.." +
-                                  std::to_string(nv - 1));
+      throw InputError(where, "face " + std::to_string(f / 3) + " uses vertex index " + std::to_string(mesh.faces[f]) +
+                                  ", expected 0.." + std::to_string(nv - 1));
 }
 
 namespace {
@@ -159,15 +157,16 @@ void precheck_obj(const std::string& path, const std::string& text, bool triangl
       if (count < 3) throw InputError(where, "face with fewer than 3 vertices");
       ++nf;
       if (triangles_only && count != 3)
-        throw InputError(where, "face with " + std::to_string(count) +
-                                    " vertices: expected triangles only");
+        throw InputError(where, "face with " + std::to_string(count) + " vertices: expected triangles only");
     }
   }
   if (nf == 0) throw InputError(path, "empty mesh: no faces (" + std::to_string(nv) + " vertices)");
 }
 
 // Little-endian binary helpers for STL.
-uint32_t le32(const unsigned char* p) { return p[0] | (p[1] << 8) | (p[2] << 16) | (static_cast<uint32_t>(p[3]) << 24); }
+uint32_t le32(const unsigned char* p) {
+  return p[0] | (p[1] << 8) | (p[2] << 16) | (static_cast<uint32_t>(p[3]) << 24);
+}
 float lef32(const unsigned char* p) {
   const uint32_t u = le32(p);
   float f;
@@ -177,8 +176,8 @@ float lef32(const unsigned char* p) {
 
 // Merges corners at identical positions (STL stores three corners per facet), in order of first
 // appearance, as assimp's JoinIdenticalVertices does.
-void add_corner(TriMesh& m, std::map<std::array<double, 3>, int32_t>& seen, const std::array<double, 3>& p,
-                bool weld, const std::string& path) {
+void add_corner(TriMesh& m, std::map<std::array<double, 3>, int32_t>& seen, const std::array<double, 3>& p, bool weld,
+                const std::string& path) {
   for (double x : p)  // also keeps NaN out of the map's ordering
     if (!std::isfinite(x))
       throw InputError(path, "non-finite coordinate (NaN or inf) in facet " + std::to_string(m.faces.size() / 3));
@@ -282,13 +281,15 @@ TriMesh read_off(const std::string& path, const std::string& data, bool triangle
     const std::string t = next("the vertices");
     char* end = nullptr;
     const double x = std::strtod(t.c_str(), &end);
-    if (end == t.c_str() || *end != '\0') throw InputError(path, "expected a coordinate, got '" + printable_text(t) + "'");
+    if (end == t.c_str() || *end != '\0')
+      throw InputError(path, "expected a coordinate, got '" + printable_text(t) + "'");
     m.vertices.push_back(x);
   }
   for (long long f = 0; f < nf; ++f) {
     const long long k = integer("a face's vertex count", 3, 1000);
     if (triangles_only && k != 3)
-      throw InputError(path, "face " + std::to_string(f) + " has " + std::to_string(k) + " vertices: expected triangles only");
+      throw InputError(
+          path, "face " + std::to_string(f) + " has " + std::to_string(k) + " vertices: expected triangles only");
     std::vector<int32_t> ids;
     for (long long c = 0; c < k; ++c) ids.push_back(static_cast<int32_t>(integer("a vertex index", 0, nv - 1)));
     for (long long c = 1; c + 1 < k; ++c) m.faces.insert(m.faces.end(), {ids[0], ids[c], ids[c + 1]});
@@ -340,12 +341,10 @@ TriMesh read_mesh(const std::string& path, const ReadMeshOptions& options) {
         const aiFace& face = mesh->mFaces[f];
         if (face.mNumIndices != 3) {
           if (options.triangles_only)
-            throw InputError(path, "face " + std::to_string(f) + " has " +
-                                       std::to_string(face.mNumIndices) +
+            throw InputError(path, "face " + std::to_string(f) + " has " + std::to_string(face.mNumIndices) +
                                        " vertices: expected triangles only");
           for (unsigned k = 1; k + 1 < face.mNumIndices; ++k)
-            out.faces.insert(out.faces.end(), {base + int32_t(face.mIndices[0]),
-                                               base + int32_t(face.mIndices[k]),
+            out.faces.insert(out.faces.end(), {base + int32_t(face.mIndices[0]), base + int32_t(face.mIndices[k]),
                                                base + int32_t(face.mIndices[k + 1])});
           continue;
         }
@@ -397,11 +396,20 @@ PlyType ply_type(const std::string& t) {
 
 size_t ply_size(PlyType t) {
   switch (t) {
-    case PlyType::i8: case PlyType::u8: return 1;
-    case PlyType::i16: case PlyType::u16: return 2;
-    case PlyType::i32: case PlyType::u32: case PlyType::f32: return 4;
-    case PlyType::f64: return 8;
-    default: return 0;
+    case PlyType::i8:
+    case PlyType::u8:
+      return 1;
+    case PlyType::i16:
+    case PlyType::u16:
+      return 2;
+    case PlyType::i32:
+    case PlyType::u32:
+    case PlyType::f32:
+      return 4;
+    case PlyType::f64:
+      return 8;
+    default:
+      return 0;
   }
 }
 
@@ -497,15 +505,48 @@ TriMesh read_ply(const std::string& path) {
     pos += n;
     if (swap) std::reverse(b, b + n);
     switch (t) {
-      case PlyType::i8: { int8_t v; std::memcpy(&v, b, 1); return v; }
-      case PlyType::u8: { uint8_t v; std::memcpy(&v, b, 1); return v; }
-      case PlyType::i16: { int16_t v; std::memcpy(&v, b, 2); return v; }
-      case PlyType::u16: { uint16_t v; std::memcpy(&v, b, 2); return v; }
-      case PlyType::i32: { int32_t v; std::memcpy(&v, b, 4); return v; }
-      case PlyType::u32: { uint32_t v; std::memcpy(&v, b, 4); return v; }
-      case PlyType::f32: { float v; std::memcpy(&v, b, 4); return v; }
-      case PlyType::f64: { double v; std::memcpy(&v, b, 8); return v; }
-      default: return 0;
+      case PlyType::i8: {
+        int8_t v;
+        std::memcpy(&v, b, 1);
+        return v;
+      }
+      case PlyType::u8: {
+        uint8_t v;
+        std::memcpy(&v, b, 1);
+        return v;
+      }
+      case PlyType::i16: {
+        int16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+      }
+      case PlyType::u16: {
+        uint16_t v;
+        std::memcpy(&v, b, 2);
+        return v;
+      }
+      case PlyType::i32: {
+        int32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case PlyType::u32: {
+        uint32_t v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case PlyType::f32: {
+        float v;
+        std::memcpy(&v, b, 4);
+        return v;
+      }
+      case PlyType::f64: {
+        double v;
+        std::memcpy(&v, b, 8);
+        return v;
+      }
+      default:
+        return 0;
     }
   };
   std::istringstream ascii_in;
@@ -532,12 +573,14 @@ TriMesh read_ply(const std::string& path) {
         throw InputError(path, "element '" + printable_text(el.name) + "' count " + std::to_string(el.count) +
                                    " is more than 50,000,000");
       double per = 0;
-      for (const PlyProp& pr : el.props) per += ascii ? 2.0 : static_cast<double>(ply_size(pr.list ? pr.count_type : pr.type));
+      for (const PlyProp& pr : el.props)
+        per += ascii ? 2.0 : static_cast<double>(ply_size(pr.list ? pr.count_type : pr.type));
       need += per * static_cast<double>(el.count);
     }
     if (need > static_cast<double>(data.size() - std::min(pos, data.size())))
-      throw InputError(path, "truncated: the element counts need at least " + std::to_string(static_cast<size_t>(need)) +
-                                 " bytes of data, the file has " + std::to_string(data.size() - std::min(pos, data.size())));
+      throw InputError(path, "truncated: the element counts need at least " +
+                                 std::to_string(static_cast<size_t>(need)) + " bytes of data, the file has " +
+                                 std::to_string(data.size() - std::min(pos, data.size())));
   }
   TriMesh mesh;
   for (const PlyElement& el : elements) {
@@ -550,8 +593,7 @@ TriMesh read_ply(const std::string& path) {
       if (el.props[p].list && (el.props[p].name == "vertex_indices" || el.props[p].name == "vertex_index"))
         ifaces = static_cast<int>(p);
     }
-    if (is_vertex && (ix < 0 || iy < 0 || iz < 0))
-      throw InputError(path, "vertex element without x, y, z properties");
+    if (is_vertex && (ix < 0 || iy < 0 || iz < 0)) throw InputError(path, "vertex element without x, y, z properties");
     if (is_face && ifaces < 0) throw InputError(path, "face element without vertex_indices");
     for (size_t i = 0; i < el.count; ++i) {
       double xyz[3] = {0, 0, 0};
@@ -589,7 +631,8 @@ TriMesh read_ply(const std::string& path) {
   return mesh;
 }
 
-std::vector<int32_t> extreme_vertices(const TriMesh& m, const std::array<double, 3>& dir, int count, double spacing_mm) {
+std::vector<int32_t> extreme_vertices(const TriMesh& m, const std::array<double, 3>& dir, int count,
+                                      double spacing_mm) {
   std::vector<int32_t> order(m.vertex_count());
   for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int32_t>(i);
   auto score = [&](int32_t i) {
@@ -602,7 +645,8 @@ std::vector<int32_t> extreme_vertices(const TriMesh& m, const std::array<double,
     bool far = true;
     for (int32_t j : out) {
       double d2 = 0;
-      for (int k = 0; k < 3; ++k) d2 += (m.vertices[3 * i + k] - m.vertices[3 * j + k]) * (m.vertices[3 * i + k] - m.vertices[3 * j + k]);
+      for (int k = 0; k < 3; ++k)
+        d2 += (m.vertices[3 * i + k] - m.vertices[3 * j + k]) * (m.vertices[3 * i + k] - m.vertices[3 * j + k]);
       far = far && d2 >= spacing_mm * spacing_mm;
     }
     if (far) out.push_back(i);

@@ -39,7 +39,8 @@ void check_keys(const std::string& file, const YAML::Node& map, const std::set<s
     if (!allowed.count(key)) {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-      throw InputError(at(file, kv.first), "unknown key '" + printable_text(key) + "' in " + what + " (expected one of: " + list + ")");
+      throw InputError(at(file, kv.first),
+                       "unknown key '" + printable_text(key) + "' in " + what + " (expected one of: " + list + ")");
     }
   }
 }
@@ -61,14 +62,14 @@ double get_number(const std::string& file, const YAML::Node& node, const std::st
 
 void read_material(const std::string& file, const YAML::Node& node, MaterialSpec& m) {
   check_keys(file, node,
-             {"model", "young_modulus_pa", "thickness_m", "density_kg_m3", "damping_scale",
-              "elastica_a", "elastica_b", "elastica_p", "tau_s", "tau_c", "flexion_stiffness",
-              "volume_stiffness", "poisson_ratio", "damping_ratio", "solid_nodes"},
+             {"model", "young_modulus_pa", "thickness_m", "density_kg_m3", "damping_scale", "elastica_a", "elastica_b",
+              "elastica_p", "tau_s", "tau_c", "flexion_stiffness", "volume_stiffness", "poisson_ratio", "damping_ratio",
+              "solid_nodes"},
              "material");
   if (node["model"]) {
     m.model = get<std::string>(file, node["model"], "a model name");
-    if (m.model != "tmsm" && m.model != "cmsm" && m.model != "nmsm" && m.model != "flexion" &&
-        m.model != "solid" && m.model != "rigid")
+    if (m.model != "tmsm" && m.model != "cmsm" && m.model != "nmsm" && m.model != "flexion" && m.model != "solid" &&
+        m.model != "rigid")
       throw InputError(at(file, node["model"]), "unknown model '" + printable_text(m.model) +
                                                     "' (expected tmsm, cmsm, nmsm, flexion, solid or rigid)");
   }
@@ -76,8 +77,8 @@ void read_material(const std::string& file, const YAML::Node& node, MaterialSpec
     if (!node[key]) return;
     out = get_number(file, node[key], key);
     if (strict ? !(out > lo) : !(out >= lo))
-      throw InputError(at(file, node[key]), std::string("'") + key + "' must be " +
-                                                (strict ? "> " : ">= ") + std::to_string(lo));
+      throw InputError(at(file, node[key]),
+                       std::string("'") + key + "' must be " + (strict ? "> " : ">= ") + std::to_string(lo));
   };
   num("young_modulus_pa", m.young_modulus_pa, 0.0, false);
   num("thickness_m", m.thickness_m, 0.0, true);
@@ -132,18 +133,21 @@ int OrganSet::index_of(const std::string& name) const {
 }
 
 std::array<float, 3> default_organ_color(const std::string& name) {
-  struct Entry { const char* key; std::array<float, 3> rgb; };
+  struct Entry {
+    const char* key;
+    std::array<float, 3> rgb;
+  };
   static const Entry table[] = {
-      {"liver", {0.62f, 0.24f, 0.19f}},       {"spleen", {0.55f, 0.18f, 0.32f}},
-      {"kidney", {0.72f, 0.38f, 0.27f}},      {"gallbladder", {0.35f, 0.55f, 0.25f}},
-      {"stomach", {0.88f, 0.66f, 0.55f}},     {"pancreas", {0.93f, 0.78f, 0.45f}},
-      {"lung", {0.95f, 0.72f, 0.72f}},        {"heart", {0.78f, 0.16f, 0.16f}},
-      {"aorta", {0.86f, 0.12f, 0.12f}},       {"pulmonary_artery", {0.30f, 0.35f, 0.80f}},
-      {"vena_cava", {0.25f, 0.35f, 0.78f}},   {"portal_vein", {0.35f, 0.40f, 0.85f}},
-      {"trachea", {0.75f, 0.85f, 0.90f}},     {"diaphragm", {0.80f, 0.55f, 0.50f}},
-      {"colon", {0.80f, 0.62f, 0.45f}},       {"esophagus", {0.85f, 0.60f, 0.55f}},
-      {"adrenal", {0.90f, 0.70f, 0.30f}},     {"duodenum", {0.85f, 0.62f, 0.48f}},
-      {"bladder", {0.85f, 0.80f, 0.45f}},     {"vertebra", {0.92f, 0.90f, 0.82f}},
+      {"liver", {0.62f, 0.24f, 0.19f}},     {"spleen", {0.55f, 0.18f, 0.32f}},
+      {"kidney", {0.72f, 0.38f, 0.27f}},    {"gallbladder", {0.35f, 0.55f, 0.25f}},
+      {"stomach", {0.88f, 0.66f, 0.55f}},   {"pancreas", {0.93f, 0.78f, 0.45f}},
+      {"lung", {0.95f, 0.72f, 0.72f}},      {"heart", {0.78f, 0.16f, 0.16f}},
+      {"aorta", {0.86f, 0.12f, 0.12f}},     {"pulmonary_artery", {0.30f, 0.35f, 0.80f}},
+      {"vena_cava", {0.25f, 0.35f, 0.78f}}, {"portal_vein", {0.35f, 0.40f, 0.85f}},
+      {"trachea", {0.75f, 0.85f, 0.90f}},   {"diaphragm", {0.80f, 0.55f, 0.50f}},
+      {"colon", {0.80f, 0.62f, 0.45f}},     {"esophagus", {0.85f, 0.60f, 0.55f}},
+      {"adrenal", {0.90f, 0.70f, 0.30f}},   {"duodenum", {0.85f, 0.62f, 0.48f}},
+      {"bladder", {0.85f, 0.80f, 0.45f}},   {"vertebra", {0.92f, 0.90f, 0.82f}},
       {"rib", {0.92f, 0.90f, 0.82f}},
   };
   for (const Entry& e : table)
@@ -156,8 +160,8 @@ std::string format_connections_csv(const std::vector<Connection>& connections) {
   os.precision(17);
   os << "organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness\n";
   for (const Connection& c : connections)
-    os << c.organ_a << ',' << c.vertex_a << ',' << c.organ_b << ',' << c.vertex_b << ','
-       << c.rest_length_mm << ',' << c.stiffness << '\n';
+    os << c.organ_a << ',' << c.vertex_a << ',' << c.organ_b << ',' << c.vertex_b << ',' << c.rest_length_mm << ','
+       << c.stiffness << '\n';
   return os.str();
 }
 
@@ -169,7 +173,8 @@ bool strict_int(const std::string& t, int* out) {
   char* end = nullptr;
   errno = 0;
   const long v = std::strtol(t.c_str(), &end, 10);
-  if (end != t.c_str() + t.size() || errno == ERANGE || v < INT32_MIN || v > INT32_MAX || std::isspace(static_cast<unsigned char>(t[0])))
+  if (end != t.c_str() + t.size() || errno == ERANGE || v < INT32_MIN || v > INT32_MAX ||
+      std::isspace(static_cast<unsigned char>(t[0])))
     return false;
   *out = static_cast<int>(v);
   return true;
@@ -208,7 +213,8 @@ std::vector<Connection> parse_connections_csv(const std::string& raw, const std:
     ++line_no;
     if (line_no == 1) {
       if (line.rfind("organ_a", 0) != 0)
-        throw InputError(path + ":1", "expected the header 'organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness'");
+        throw InputError(path + ":1",
+                         "expected the header 'organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness'");
       continue;
     }
     if (line.empty()) continue;
@@ -232,7 +238,8 @@ std::vector<Connection> parse_connections_csv(const std::string& raw, const std:
                                     printable_text(f[k]) + "'");
     for (int k : {4, 5})
       if (!strict_double(f[k], k == 4 ? &c.rest_length_mm : &c.stiffness))
-        throw InputError(where, std::string(kField[k]) + ": expected a finite number, got '" + printable_text(f[k]) + "'");
+        throw InputError(where,
+                         std::string(kField[k]) + ": expected a finite number, got '" + printable_text(f[k]) + "'");
     if (c.rest_length_mm < 0) throw InputError(where, "rest_length_mm must be a finite value >= 0");
     if (c.stiffness < 0) throw InputError(where, "stiffness must be a finite value >= 0");
     out.push_back(c);
@@ -259,8 +266,7 @@ OrganSet read_organ_set(const std::string& folder) {
              {"softatlas_organ_set", "units", "space", "organs", "connections", "provenance", "quality", "ct"},
              "atlas.yaml");
   // The format version: this reader knows version 1 (docs/organ-set.md).
-  if (!root["softatlas_organ_set"])
-    throw InputError(file, "missing 'softatlas_organ_set: 1' (the format version)");
+  if (!root["softatlas_organ_set"]) throw InputError(file, "missing 'softatlas_organ_set: 1' (the format version)");
   {
     const YAML::Node& vn = root["softatlas_organ_set"];
     int version = 0;
@@ -280,7 +286,8 @@ OrganSet read_organ_set(const std::string& folder) {
   if (!root["organs"] || !root["organs"].IsSequence() || root["organs"].size() == 0)
     throw InputError(at(file, root), "'organs' must be a non-empty list");
   for (const YAML::Node& on : root["organs"]) {
-    check_keys(file, on, {"name", "label", "fma", "color", "mesh", "face_budget", "material", "fixed_vertices", "regions"},
+    check_keys(file, on,
+               {"name", "label", "fma", "color", "mesh", "face_budget", "material", "fixed_vertices", "regions"},
                "organ");
     OrganEntry o;
     if (!on["name"]) throw InputError(at(file, on), "organ without 'name'");
@@ -325,9 +332,11 @@ OrganSet read_organ_set(const std::string& folder) {
         std::array<double, 3> q{};
         for (int k = 0; k < 3; ++k) {
           q[k] = get_number(file, p[k], "a coordinate (mm)");
-          if (!(std::abs(q[k]) <= 1e4)) throw InputError(at(file, p[k]), "region coordinates must be within 1e4 mm of the origin");
+          if (!(std::abs(q[k]) <= 1e4))
+            throw InputError(at(file, p[k]), "region coordinates must be within 1e4 mm of the origin");
         }
-        if (o.find_region(name)) throw InputError(at(file, kv.first), "duplicate region '" + printable_text(name) + "'");
+        if (o.find_region(name))
+          throw InputError(at(file, kv.first), "duplicate region '" + printable_text(name) + "'");
         o.regions.push_back({name, q});
       }
     }
@@ -346,9 +355,11 @@ OrganSet read_organ_set(const std::string& folder) {
       if (!a) throw InputError(where, "organ '" + printable_text(c.organ_a) + "' is not in atlas.yaml");
       if (!b) throw InputError(where, "organ '" + printable_text(c.organ_b) + "' is not in atlas.yaml");
       if (c.vertex_a < 0 || static_cast<size_t>(c.vertex_a) >= a->mesh.vertex_count())
-        throw InputError(where, "vertex_a " + std::to_string(c.vertex_a) + " outside organ '" + printable_text(c.organ_a) + "'");
+        throw InputError(
+            where, "vertex_a " + std::to_string(c.vertex_a) + " outside organ '" + printable_text(c.organ_a) + "'");
       if (c.vertex_b < 0 || static_cast<size_t>(c.vertex_b) >= b->mesh.vertex_count())
-        throw InputError(where, "vertex_b " + std::to_string(c.vertex_b) + " outside organ '" + printable_text(c.organ_b) + "'");
+        throw InputError(
+            where, "vertex_b " + std::to_string(c.vertex_b) + " outside organ '" + printable_text(c.organ_b) + "'");
     }
   }
   if (root["ct"]) {  // ct: {file: ct.nii.gz, window_width_hu: 400, window_level_hu: 40}
@@ -361,7 +372,8 @@ OrganSet read_organ_set(const std::string& folder) {
     bool up = false;
     for (const auto& part : rel) up |= part == "..";
     if (ct.file.empty() || rel.is_absolute() || up)
-      throw InputError(at(file, cn["file"]), "ct: 'file' must be a path inside the set folder, got '" + printable_text(ct.file) + "'");
+      throw InputError(at(file, cn["file"]),
+                       "ct: 'file' must be a path inside the set folder, got '" + printable_text(ct.file) + "'");
     if (cn["window_width_hu"]) {
       ct.window_width_hu = get_number(file, cn["window_width_hu"], "window_width_hu");
       if (!(ct.window_width_hu >= 1 && ct.window_width_hu <= 10000))
@@ -424,12 +436,10 @@ void write_organ_set(const OrganSet& set, const std::string& folder,
         y << "    material: {model: " << m.model << ", young_modulus_pa: " << m.young_modulus_pa
           << ", thickness_m: " << m.thickness_m << ", density_kg_m3: " << m.density_kg_m3
           << ", damping_scale: " << m.damping_scale << ", elastica_a: " << m.elastica_a
-          << ", elastica_b: " << m.elastica_b << ", elastica_p: " << m.elastica_p
-          << ", tau_s: " << m.tau_s << ", tau_c: " << m.tau_c
-          << ", flexion_stiffness: " << m.flexion_stiffness
+          << ", elastica_b: " << m.elastica_b << ", elastica_p: " << m.elastica_p << ", tau_s: " << m.tau_s
+          << ", tau_c: " << m.tau_c << ", flexion_stiffness: " << m.flexion_stiffness
           << ", volume_stiffness: " << m.volume_stiffness;
-        if (m.model == "solid")
-          y << ", poisson_ratio: " << m.poisson_ratio << ", solid_nodes: " << m.solid_nodes;
+        if (m.model == "solid") y << ", poisson_ratio: " << m.poisson_ratio << ", solid_nodes: " << m.solid_nodes;
         if (m.damping_ratio >= 0) y << ", damping_ratio: " << m.damping_ratio;
         y << "}\n";
       }

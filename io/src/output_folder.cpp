@@ -97,7 +97,8 @@ void StagedFolder::commit() {
 }
 
 std::string name_target(std::string message, const std::string& from, const std::string& to) {
-  for (size_t at = message.find(from); !from.empty() && at != std::string::npos; at = message.find(from, at + to.size()))
+  for (size_t at = message.find(from); !from.empty() && at != std::string::npos;
+       at = message.find(from, at + to.size()))
     message.replace(at, from.size(), to);
   return message;
 }

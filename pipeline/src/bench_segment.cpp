@@ -33,12 +33,19 @@ namespace {
 // Unenhanced HU of the organs whose contrast the "unenhanced" variant removes (typical
 // non-contrast CT values; kidneys and adrenals for CTs that have them).
 const std::map<std::string, double>& unenhanced_hu() {
-  static const std::map<std::string, double> m = {
-      {"liver", 50},        {"spleen", 45},        {"pancreas", 40},
-      {"aorta", 40},        {"inferior_vena_cava", 40}, {"portal_vein_and_splenic_vein", 40},
-      {"heart", 40},        {"pulmonary_vein", 40}, {"superior_vena_cava", 40},
-      {"kidney_left", 30},  {"kidney_right", 30},  {"adrenal_gland_left", 30},
-      {"adrenal_gland_right", 30}};
+  static const std::map<std::string, double> m = {{"liver", 50},
+                                                  {"spleen", 45},
+                                                  {"pancreas", 40},
+                                                  {"aorta", 40},
+                                                  {"inferior_vena_cava", 40},
+                                                  {"portal_vein_and_splenic_vein", 40},
+                                                  {"heart", 40},
+                                                  {"pulmonary_vein", 40},
+                                                  {"superior_vena_cava", 40},
+                                                  {"kidney_left", 30},
+                                                  {"kidney_right", 30},
+                                                  {"adrenal_gland_left", 30},
+                                                  {"adrenal_gland_right", 30}};
   return m;
 }
 
@@ -191,9 +198,11 @@ Volume resample(const Volume& v, const std::array<int, 3>& to, bool nearest) {
         const double x = (i + 0.5) * scale[0] - 0.5, y = (j + 0.5) * scale[1] - 0.5, z = (k + 0.5) * scale[2] - 0.5;
         float val;
         if (nearest) {
-          val = at(static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y)), static_cast<int>(std::lround(z)));
+          val =
+              at(static_cast<int>(std::lround(x)), static_cast<int>(std::lround(y)), static_cast<int>(std::lround(z)));
         } else {
-          const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y)), z0 = static_cast<int>(std::floor(z));
+          const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y)),
+                    z0 = static_cast<int>(std::floor(z));
           const double fx = x - x0, fy = y - y0, fz = z - z0;
           double acc = 0;
           for (int c = 0; c < 8; ++c) {
@@ -240,13 +249,19 @@ const std::vector<std::string>& stress_variants() {
 
 EvalCase make_variant(const EvalCase& c, const std::string& variant) {
   EvalCase out;
-  if (variant == "original") out = c;
-  else if (variant == "3mm") out = to_3mm(c);
-  else if (variant == "unenhanced") out = unenhance(c);
-  else if (variant == "noise") out = add_noise(c);
-  else if (variant == "unenhanced_3mm") out = to_3mm(unenhance(c));
+  if (variant == "original")
+    out = c;
+  else if (variant == "3mm")
+    out = to_3mm(c);
+  else if (variant == "unenhanced")
+    out = unenhance(c);
+  else if (variant == "noise")
+    out = add_noise(c);
+  else if (variant == "unenhanced_3mm")
+    out = to_3mm(unenhance(c));
   else
-    throw InputError("--variants", "unknown variant '" + variant + "' (expected original, 3mm, unenhanced, noise, unenhanced_3mm)");
+    throw InputError("--variants",
+                     "unknown variant '" + variant + "' (expected original, 3mm, unenhanced, noise, unenhanced_3mm)");
   out.variant = variant;
   return out;
 }
@@ -359,7 +374,8 @@ int run_bench_segment(BenchSegmentArgs a) {
           for (const auto& p : s.background) std::fprintf(f, "  - [%.2f, %.2f, %.2f]\n", p[0], p[1], p[2]);
           std::fclose(f);
         }
-        std::fprintf(stderr, "[softatlas bench segment] wrote %s_{ct,ref}.nii.gz and %d seed files\n", stem.c_str(), draws);
+        std::fprintf(stderr, "[softatlas bench segment] wrote %s_{ct,ref}.nii.gz and %d seed files\n", stem.c_str(),
+                     draws);
       }
     }
     return 0;
@@ -371,8 +387,9 @@ int run_bench_segment(BenchSegmentArgs a) {
   out["seeds_per_organ"] = 5;
   out["background_points"] = 10;
   out["results"] = json::array();
-  std::string table = "| case | variant | organ | Dice mean | Dice worst | volume ratio mean | volume ratio max |\n"
-                      "| --- | --- | --- | --- | --- | --- | --- |\n";
+  std::string table =
+      "| case | variant | organ | Dice mean | Dice worst | volume ratio mean | volume ratio max |\n"
+      "| --- | --- | --- | --- | --- | --- | --- |\n";
   for (const auto& name : cases) {
     const EvalCase base = load_eval_case(data, name);
     for (const auto& v : variants) {
@@ -394,8 +411,9 @@ int run_bench_segment(BenchSegmentArgs a) {
         double mean = 0, vmean = 0;
         for (size_t k = 0; k < dc.size(); ++k) mean += dc[k] / dc.size(), vmean += vr[k] / vr.size();
         const double worst = *std::min_element(dc.begin(), dc.end()), vmax = *std::max_element(vr.begin(), vr.end());
-        r["organs"][c.organs[o].name] = {{"dice_mean", mean}, {"dice_worst", worst}, {"volume_ratio_mean", vmean},
-                                         {"volume_ratio_max", vmax}, {"dice", dc}, {"volume_ratio", vr}};
+        r["organs"][c.organs[o].name] = {
+            {"dice_mean", mean},        {"dice_worst", worst}, {"volume_ratio_mean", vmean},
+            {"volume_ratio_max", vmax}, {"dice", dc},          {"volume_ratio", vr}};
         char line[256];
         std::snprintf(line, sizeof line, "| %s | %s | %s | %.3f | %.3f | %.2f | %.2f |\n", name.c_str(), v.c_str(),
                       c.organs[o].name.c_str(), mean, worst, vmean, vmax);
@@ -405,15 +423,18 @@ int run_bench_segment(BenchSegmentArgs a) {
       out["results"].push_back(r);
     }
   }
-  if (as_json) std::cout << out.dump(2) << "\n";
-  else std::cout << table;
+  if (as_json)
+    std::cout << out.dump(2) << "\n";
+  else
+    std::cout << table;
   return 0;
 }
 
 }  // namespace
 
 void add_bench_segment(CLI::App& bench, cli::Status* status) {
-  CLI::App* app = bench.add_subcommand("segment", "seeded segmentation, random seed draws on the shared CTs and stress variants");
+  CLI::App* app =
+      bench.add_subcommand("segment", "seeded segmentation, random seed draws on the shared CTs and stress variants");
   auto a = std::make_shared<BenchSegmentArgs>();
   app->add_option("--data", a->data, "shared data folder (holds ct/)");
   app->add_option("--cases", a->cases, "slab, heart_crop, aorta_crop (comma-separated)")->delimiter(',');

@@ -54,12 +54,9 @@ std::string label_group(const std::string& n) {
   return "other";
 }
 
-
 using Clock = std::chrono::steady_clock;
 
-double since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 struct Progress {
   bool quiet;
@@ -133,7 +130,8 @@ io::CtImage crop_ct(const Volume& ct, const std::vector<io::OrganEntry>& organs,
   for (int k = i0[2]; k <= i1[2]; ++k)
     for (int j = i0[1]; j <= i1[1]; ++j)
       for (int i = i0[0]; i <= i1[0]; ++i)
-        out.hu.push_back(static_cast<int16_t>(std::lround(std::clamp(static_cast<double>(ct.values[ct.index(i, j, k)]), -32768.0, 32767.0))));
+        out.hu.push_back(static_cast<int16_t>(
+            std::lround(std::clamp(static_cast<double>(ct.values[ct.index(i, j, k)]), -32768.0, 32767.0))));
   return out;
 }
 
@@ -147,9 +145,9 @@ bool boxes_overlap(const std::array<double, 6>& a, const std::array<double, 6>& 
 struct OrganJob {
   std::string name;
   int label = 0;
-  int source = -1;            // index into labels (or -1 for meshes/seeds)
-  std::vector<int> values;    // label values in that source
-  std::string mesh_path;      // mesh mode
+  int source = -1;          // index into labels (or -1 for meshes/seeds)
+  std::vector<int> values;  // label values in that source
+  std::string mesh_path;    // mesh mode
   int budget = 0;
 };
 
@@ -163,8 +161,10 @@ std::string organ_from_mesh_path(const std::string& path) {
   std::string low = stem;
   for (char& c : low) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   if (label_id(low) > 0) return low;
-  throw InputError(path, "cannot tell which organ this mesh is; name it as ORGAN=FILE "
-                         "(TotalSegmentator names, e.g. liver=" + fs::path(path).filename().string() + ")");
+  throw InputError(path,
+                   "cannot tell which organ this mesh is; name it as ORGAN=FILE "
+                   "(TotalSegmentator names, e.g. liver=" +
+                       fs::path(path).filename().string() + ")");
 }
 
 }  // namespace
@@ -176,8 +176,7 @@ void apply_build_config(const std::string& path, BuildOptions* o) {
   } catch (const YAML::BadFile&) {
     throw InputError(path, "cannot open the build config");
   } catch (const YAML::Exception& e) {
-    throw InputError(path + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1),
-                     e.msg);
+    throw InputError(path + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1), e.msg);
   }
   if (!root.IsMap()) throw InputError(path, "expected a YAML map of build settings");
   auto where = [&](const YAML::Node& n, const std::string& key) {
@@ -272,8 +271,8 @@ BuildResult build_organ_set(const BuildOptions& o) {
       l.source = src;
       l.volume = read_volume(src.path);
       if (!boxes_overlap(ct_box, l.volume.world_bounds(), 0.5 * std::cbrt(ct.voxel_volume_mm3())))
-        throw InputError(src.path, "the label map's grid does not overlap the CT " + o.ct_path +
-                                       " in world coordinates");
+        throw InputError(src.path,
+                         "the label map's grid does not overlap the CT " + o.ct_path + " in world coordinates");
       for (float x : l.volume.values) {
         const long v = std::lround(x);
         if (v != 0) ++l.counts[static_cast<int>(v)];
@@ -281,8 +280,9 @@ BuildResult build_organ_set(const BuildOptions& o) {
       if (l.counts.empty()) throw InputError(src.path, "the label map has no labels (every voxel is 0)");
       // A 0/1 mask read as a label map would build TotalSegmentator's label 1 (spleen) silently.
       if (src.organ.empty() && l.volume.label_names.empty() && l.counts.size() == 1 && l.counts.begin()->first == 1)
-        throw InputError(src.path, std::string("a 0/1 mask without an organ name (as a label map it would build label 1, ") +
-                                       "spleen); name it: --labels NAME=" + src.path);
+        throw InputError(src.path,
+                         std::string("a 0/1 mask without an organ name (as a label map it would build label 1, ") +
+                             "spleen); name it: --labels NAME=" + src.path);
       provenance["labels:" + src.path] = sha256_file(src.path);
       labels.push_back(std::move(l));
     }
@@ -346,8 +346,10 @@ BuildResult build_organ_set(const BuildOptions& o) {
     std::vector<std::string> names;
     std::vector<std::string> groups;
     for (const std::string& nm : o.organs) {
-      if (nm == "all" || nm == "organs" || nm == "vessels" || nm == "bones" || nm == "muscles" || nm == "other") groups.push_back(nm);
-      else if (std::find(names.begin(), names.end(), nm) == names.end()) names.push_back(nm);
+      if (nm == "all" || nm == "organs" || nm == "vessels" || nm == "bones" || nm == "muscles" || nm == "other")
+        groups.push_back(nm);
+      else if (std::find(names.begin(), names.end(), nm) == names.end())
+        names.push_back(nm);
     }
     auto present = [&](auto&& take) {
       for (const auto& l : labels)
@@ -356,7 +358,8 @@ BuildResult build_organ_set(const BuildOptions& o) {
           if (!nm.empty() && take(nm) && std::find(names.begin(), names.end(), nm) == names.end()) names.push_back(nm);
         }
     };
-    for (const std::string& g : groups) present([&](const std::string& nm) { return g == "all" || label_group(nm) == g; });
+    for (const std::string& g : groups)
+      present([&](const std::string& nm) { return g == "all" || label_group(nm) == g; });
     if (names.empty() && !groups.empty())
       throw InputError("--organs", "no label of the group(s) given is in the label map");
     if (names.empty()) {
@@ -367,8 +370,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
         }
         for (const auto& [v, n] : l.counts) {
           const std::string nm = name_of(l, v);
-          if (!nm.empty() && is_default_soft_organ(nm) &&
-              std::find(names.begin(), names.end(), nm) == names.end())
+          if (!nm.empty() && is_default_soft_organ(nm) && std::find(names.begin(), names.end(), nm) == names.end())
             names.push_back(nm);
         }
       }
@@ -380,16 +382,18 @@ BuildResult build_organ_set(const BuildOptions& o) {
       for (const auto& l : labels)
         for (const auto& [v, count] : l.counts) {
           const std::string nm = l.source.organ.empty() ? name_of(l, v) : l.source.organ;
-          if (nm.empty()) left["no name in the label table"].push_back(std::to_string(v));
-          else if (std::find(names.begin(), names.end(), nm) == names.end()) left[label_group(nm)].push_back(nm);
+          if (nm.empty())
+            left["no name in the label table"].push_back(std::to_string(v));
+          else if (std::find(names.begin(), names.end(), nm) == names.end())
+            left[label_group(nm)].push_back(nm);
         }
       for (const auto& [why, list] : left) {
         std::string all_names;
         for (const auto& x : list) all_names += (all_names.empty() ? "" : ", ") + x;
         const std::string add = why.rfind("no name", 0) == 0 ? std::string("--labels NAME=MASK") : "--organs " + why;
         if (!o.quiet)
-          std::fprintf(stderr, "[softatlas build] labels: left out %zu (%s; add with %s or --organs all): %s\n", list.size(),
-                       why.c_str(), add.c_str(), all_names.c_str());
+          std::fprintf(stderr, "[softatlas build] labels: left out %zu (%s; add with %s or --organs all): %s\n",
+                       list.size(), why.c_str(), add.c_str(), all_names.c_str());
       }
     }
     for (const std::string& name : names) {
@@ -400,10 +404,11 @@ BuildResult build_organ_set(const BuildOptions& o) {
         if (j.label == 0 && !named_mask)
           throw InputError("--organs " + name, "unknown organ '" + name +
                                                    "' (expected a TotalSegmentator name such as liver, "
-                                                   "kidney_left; or give its mask as --labels " + name + "=FILE)");
+                                                   "kidney_left; or give its mask as --labels " +
+                                                   name + "=FILE)");
         std::string src = labels.front().source.path;
-        throw InputError(src, "organ '" + name + "' (label " + std::to_string(j.label) +
-                                  ") is absent from the label map");
+        throw InputError(src,
+                         "organ '" + name + "' (label " + std::to_string(j.label) + ") is absent from the label map");
       }
       jobs.push_back(j);
     }
@@ -468,8 +473,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
     result.times.add("surface", since(t0));
 
     t0 = Clock::now();
-    say("remesh: %s to %s faces (CGAL repair, isotropic remeshing, edge collapse)", j.name,
-        std::to_string(j.budget));
+    say("remesh: %s to %s faces (CGAL repair, isotropic remeshing, edge collapse)", j.name, std::to_string(j.budget));
     RemeshOptions ro = o.remesh;
     ro.face_budget = j.budget;
     // Self-contact is expected of label surfaces (split non-manifold vertices) and is remeshed
@@ -482,7 +486,8 @@ BuildResult build_organ_set(const BuildOptions& o) {
       ro.target_volume_mm3 = reference_volume;
       ro.max_offset_mm = voxel_mm;
     }
-    const RemeshResult r = repair_and_remesh(stage3, ro, (j.mesh_path.empty() ? labels[j.source].source.path : j.mesh_path) + ": " + j.name);
+    const RemeshResult r = repair_and_remesh(
+        stage3, ro, (j.mesh_path.empty() ? labels[j.source].source.path : j.mesh_path) + ": " + j.name);
     result.times.add("remesh", since(t0));
 
     const SurfaceReport rep = inspect_surface(r.mesh);
@@ -510,7 +515,8 @@ BuildResult build_organ_set(const BuildOptions& o) {
       if (r.hausdorff_mm > ro.max_hausdorff_mm) {
         const std::string note = "the surface is " + fmt(r.hausdorff_mm) + " mm (" + fmt(r.hausdorff_mm / voxel_mm) +
                                  " voxels) from the label's at its farthest, more than " +
-                                 fmt(ro.max_hausdorff_mm / voxel_mm) + " voxels: a thin part may be "
+                                 fmt(ro.max_hausdorff_mm / voxel_mm) +
+                                 " voxels: a thin part may be "
                                  "rounded off at this budget (a larger --budget keeps it)";
         q["notes"].push_back(note);
         say("  warning: %s: %s", j.name, note);
@@ -531,8 +537,8 @@ BuildResult build_organ_set(const BuildOptions& o) {
     say("  %s: %s", j.name,
         std::to_string(rep.faces) + " faces, closed " + (rep.closed() ? "yes" : "NO") + ", volume " +
             fmt(volume / 1000.0) + " mL" +
-            (reference_volume > 0 ? " (reference " + fmt(reference_volume / 1000.0) + " mL)" : "") +
-            ", Hausdorff " + fmt(r.hausdorff_mm) + " mm");
+            (reference_volume > 0 ? " (reference " + fmt(reference_volume / 1000.0) + " mL)" : "") + ", Hausdorff " +
+            fmt(r.hausdorff_mm) + " mm");
     qorgans[j.name] = q;
 
     io::OrganEntry e;
@@ -558,8 +564,11 @@ BuildResult build_organ_set(const BuildOptions& o) {
   set.connections = connect_organs(set.organs, o.connect, &pairs);
   json qpairs = json::array();
   for (const auto& p : pairs)
-    qpairs.push_back({{"organ_a", p.organ_a}, {"organ_b", p.organ_b}, {"closest_mm", p.closest_mm},
-                      {"springs", p.springs}, {"default_pair", p.default_pair}});
+    qpairs.push_back({{"organ_a", p.organ_a},
+                      {"organ_b", p.organ_b},
+                      {"closest_mm", p.closest_mm},
+                      {"springs", p.springs},
+                      {"default_pair", p.default_pair}});
   quality["connections"] = qpairs;
   // Anchors, for organ sets in patient RAS (a CT build; meshes keep their own frame).
   if (!mesh_mode && o.connect.anchor_count > 0) {
@@ -602,8 +611,9 @@ BuildResult build_organ_set(const BuildOptions& o) {
     io::CtRecord rec;  // soft-tissue window: 400 / 40 HU
     set.ct = rec;
     files[rec.file] = io::encode_ct_nifti_gz(crop);
-    say("write: CT cropped to the organs + 20 mm: %s voxels, %s MB", std::to_string(crop.dims[0]) + "x" +
-        std::to_string(crop.dims[1]) + "x" + std::to_string(crop.dims[2]), fmt(files[rec.file].size() / 1e6));
+    say("write: CT cropped to the organs + 20 mm: %s voxels, %s MB",
+        std::to_string(crop.dims[0]) + "x" + std::to_string(crop.dims[1]) + "x" + std::to_string(crop.dims[2]),
+        fmt(files[rec.file].size() / 1e6));
   }
   say("write: %s", o.output);
   io::write_organ_set(set, o.output, files, o.overwrite);
@@ -622,7 +632,8 @@ bool check_organ_set(const std::string& folder, std::string* report_json) {
     json q;
     q["faces"] = r.faces;
     q["face_budget"] = e.face_budget;
-    const bool budget_ok = e.face_budget <= 0 || std::abs(static_cast<double>(r.faces) - e.face_budget) <= 0.02 * e.face_budget;
+    const bool budget_ok =
+        e.face_budget <= 0 || std::abs(static_cast<double>(r.faces) - e.face_budget) <= 0.02 * e.face_budget;
     q["closed"] = r.closed();
     q["edge_manifold"] = r.edge_manifold();
     q["consistently_oriented"] = r.oriented();

@@ -171,7 +171,8 @@ int run_check(const std::string& folder) {
   const bool ok = check_organ_set(folder, &report);
   std::cout << report;
   if (!ok) {
-    std::fprintf(stderr, "softatlas: %s: an organ surface fails the checks (see \"ok\": false above)\n", folder.c_str());
+    std::fprintf(stderr, "softatlas: %s: an organ surface fails the checks (see \"ok\": false above)\n",
+                 folder.c_str());
     return 1;
   }
   return 0;
@@ -224,7 +225,8 @@ int run_bench(const BenchArgs& a) {
     for (size_t i = 0; i < base.labels.size(); ++i) {
       const Volume l = read_volume(base.labels[i].path);
       std::array<int, 3> lto;
-      for (int d = 0; d < 3; ++d) lto[d] = static_cast<int>(std::lround(static_cast<double>(l.dims[d]) * to[d] / ct.dims[d]));
+      for (int d = 0; d < 3; ++d)
+        lto[d] = static_cast<int>(std::lround(static_cast<double>(l.dims[d]) * to[d] / ct.dims[d]));
       base.labels[i].path = (resample_dir / ("labels" + std::to_string(i) + ".nii.gz")).string();
       write_label_nifti(resample(l, lto, true), base.labels[i].path);
     }
@@ -303,8 +305,8 @@ void add_check(CLI::App& root, cli::Status* status) {
 }
 
 void add_export(CLI::App& root, cli::Status* status) {
-  CLI::App* app = root.add_subcommand(
-      "export", "organ set -> glTF 2.0 (.glb binary, .gltf JSON + .bin), or a WebXR page (--web)");
+  CLI::App* app =
+      root.add_subcommand("export", "organ set -> glTF 2.0 (.glb binary, .gltf JSON + .bin), or a WebXR page (--web)");
   auto a = std::make_shared<ExportArgs>();
   app->add_option("set", a->folder, "organ-set folder")->required();
   auto* glb = app->add_option("-o,--output", a->output, "output .glb or .gltf");
@@ -338,8 +340,6 @@ void add_commands(CLI::App& root, cli::Status* status) {
   add_bench_segment(*bench, status);
 }
 
-int cli_main(const std::vector<std::string>& args) {
-  return cli::run_only(add_commands, args);
-}
+int cli_main(const std::vector<std::string>& args) { return cli::run_only(add_commands, args); }
 
 }  // namespace softatlas::pipeline

@@ -35,8 +35,8 @@ bool is_default_pair(const ConnectOptions& o, const std::string& a, const std::s
 
 }  // namespace
 
-std::vector<io::Connection> connect_organs(const std::vector<io::OrganEntry>& organs,
-                                           const ConnectOptions& o, std::vector<PairReport>* report) {
+std::vector<io::Connection> connect_organs(const std::vector<io::OrganEntry>& organs, const ConnectOptions& o,
+                                           std::vector<PairReport>* report) {
   std::vector<io::Connection> springs;
   std::vector<vtkSmartPointer<vtkKdTreePointLocator>> trees(organs.size());
   std::vector<vtkSmartPointer<vtkPolyData>> clouds(organs.size());
@@ -71,9 +71,8 @@ std::vector<io::Connection> connect_organs(const std::vector<io::OrganEntry>& or
       }
       const bool dflt = is_default_pair(o, A.name, B.name);
       if (!dflt && closest > o.distance_mm) continue;
-      std::sort(cand.begin(), cand.end(), [](const Candidate& x, const Candidate& y) {
-        return x.d < y.d || (x.d == y.d && x.a < y.a);
-      });
+      std::sort(cand.begin(), cand.end(),
+                [](const Candidate& x, const Candidate& y) { return x.d < y.d || (x.d == y.d && x.a < y.a); });
       // Greedy Poisson-disc thinning on the source organ, closest pairs first; each target
       // vertex takes at most one spring.
       std::vector<int32_t> accepted;

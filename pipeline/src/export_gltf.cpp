@@ -60,7 +60,8 @@ void export_gltf(const std::string& set_folder, const std::string& out_path) {
   const io::OrganSet set = io::read_organ_set(set_folder);
   if (set.organs.empty()) throw InputError(set_folder, "the organ set has no organs to export");
 
-  std::array<double, 3> lo{std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
+  std::array<double, 3> lo{std::numeric_limits<double>::max(), std::numeric_limits<double>::max(),
+                           std::numeric_limits<double>::max()};
   std::array<double, 3> hi{-lo[0], -lo[1], -lo[2]};
   for (const io::OrganEntry& e : set.organs)
     for (size_t v = 0; v < e.mesh.vertex_count(); ++v)
@@ -107,48 +108,63 @@ void export_gltf(const std::string& set_folder, const std::string& out_path) {
     for (size_t v = 0; v < nv; ++v) {
       float* n = &nrm[3 * v];
       const float len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-      if (len > 0) for (int d = 0; d < 3; ++d) n[d] /= len;
-      else n[1] = 1.0f;  // an unused vertex: any unit normal keeps validators quiet
+      if (len > 0)
+        for (int d = 0; d < 3; ++d) n[d] /= len;
+      else
+        n[1] = 1.0f;  // an unused vertex: any unit normal keeps validators quiet
     }
     const int vp = view(pos.data(), pos.size() * sizeof(float), 34962);
     const int vn = view(nrm.data(), nrm.size() * sizeof(float), 34962);
     const int vi = view(idx.data(), idx.size() * sizeof(uint32_t), 34963);
     const int base = static_cast<int>(accessors.size());
-    accessors.push_back({{"bufferView", vp}, {"componentType", 5126}, {"count", nv}, {"type", "VEC3"},
-                         {"min", pmin}, {"max", pmax}});
+    accessors.push_back(
+        {{"bufferView", vp}, {"componentType", 5126}, {"count", nv}, {"type", "VEC3"}, {"min", pmin}, {"max", pmax}});
     accessors.push_back({{"bufferView", vn}, {"componentType", 5126}, {"count", nv}, {"type", "VEC3"}});
     accessors.push_back({{"bufferView", vi}, {"componentType", 5125}, {"count", 3 * nf}, {"type", "SCALAR"}});
     const int m = static_cast<int>(materials.size());
     const bool rigid = e.material.model == "rigid" || (nv > 0 && e.fixed_vertices.size() == nv);
     materials.push_back({{"name", e.name},
                          {"pbrMetallicRoughness",
-                          {{"baseColorFactor", {e.color[0], e.color[1], e.color[2], 1.0}}, {"metallicFactor", 0.0}, {"roughnessFactor", 0.6}}},
+                          {{"baseColorFactor", {e.color[0], e.color[1], e.color[2], 1.0}},
+                           {"metallicFactor", 0.0},
+                           {"roughnessFactor", 0.6}}},
                          {"doubleSided", false}});
     meshes.push_back({{"name", e.name},
-                      {"primitives", json::array({{{"attributes", {{"POSITION", base}, {"NORMAL", base + 1}}}, {"indices", base + 2},
-                                                   {"material", m}, {"mode", 4}}})}});
+                      {"primitives", json::array({{{"attributes", {{"POSITION", base}, {"NORMAL", base + 1}}},
+                                                   {"indices", base + 2},
+                                                   {"material", m},
+                                                   {"mode", 4}}})}});
     children.push_back(static_cast<int>(nodes.size()) + 1);  // node 0 is the root
     nodes.push_back({{"name", e.name},
                      {"mesh", static_cast<int>(meshes.size()) - 1},
-                     {"extras", {{"name", e.name}, {"label", e.label}, {"fma", e.fma}, {"model", e.material.model},
-                                 {"rigid", rigid}, {"vertices", nv}, {"faces", nf}}}});
+                     {"extras",
+                      {{"name", e.name},
+                       {"label", e.label},
+                       {"fma", e.fma},
+                       {"model", e.material.model},
+                       {"rigid", rigid},
+                       {"vertices", nv},
+                       {"faces", nf}}}});
   }
   json root_node = {{"name", "softatlas_organ_set"},
                     {"children", children},
-                    {"extras", {{"patient_offset_mm", centre},
-                                {"patient_space", set.space},
-                                {"to_patient", "RAS_mm = (-X, Z, Y) * 1000 + patient_offset_mm"},
-                                {"bounds_mm", {{"min", lo}, {"max", hi}}},
-                                {"source", set.provenance.count("source") ? set.provenance.at("source") : ""},
-                                {"license", set.provenance.count("license") ? set.provenance.at("license") : ""}}}};
+                    {"extras",
+                     {{"patient_offset_mm", centre},
+                      {"patient_space", set.space},
+                      {"to_patient", "RAS_mm = (-X, Z, Y) * 1000 + patient_offset_mm"},
+                      {"bounds_mm", {{"min", lo}, {"max", hi}}},
+                      {"source", set.provenance.count("source") ? set.provenance.at("source") : ""},
+                      {"license", set.provenance.count("license") ? set.provenance.at("license") : ""}}}};
   nodes.insert(nodes.begin(), root_node);
 
   const bool glb = ext == ".glb";
   const fs::path bin_path = fs::path(out_path).replace_extension(".bin");
   json buffer = {{"byteLength", bin.size()}};
   if (!glb) buffer["uri"] = bin_path.filename().string();
-  json doc = {{"asset", {{"version", "2.0"}, {"generator", "SoftAtlas export (pipeline/src/export_gltf.cpp)"},
-                         {"copyright", set.provenance.count("license") ? set.provenance.at("license") : ""}}},
+  json doc = {{"asset",
+               {{"version", "2.0"},
+                {"generator", "SoftAtlas export (pipeline/src/export_gltf.cpp)"},
+                {"copyright", set.provenance.count("license") ? set.provenance.at("license") : ""}}},
               {"scene", 0},
               {"scenes", json::array({{{"name", "organ set"}, {"nodes", {0}}}})},
               {"nodes", nodes},

@@ -66,8 +66,11 @@ json scene_json(const io::OrganSet& set, const sim::SceneDesc& d) {
   }
   json connections = json::array();
   for (const sim::ConnectionDesc& c : d.connections)
-    connections.push_back({{"organ_a", c.organ_a}, {"vertex_a", c.vertex_a}, {"organ_b", c.organ_b},
-                           {"vertex_b", c.vertex_b}, {"rest_length_m", c.rest_length_m},
+    connections.push_back({{"organ_a", c.organ_a},
+                           {"vertex_a", c.vertex_a},
+                           {"organ_b", c.organ_b},
+                           {"vertex_b", c.vertex_b},
+                           {"rest_length_m", c.rest_length_m},
                            {"stiffness", c.stiffness}});
   return {{"softatlas_web_scene", 1},
           {"units", "m"},
@@ -164,8 +167,9 @@ std::string web_dist_folder() {
 
 void export_web(const std::string& set_folder, const std::string& out_folder, const std::string& dist) {
   if (dist.empty())
-    throw InputError("--web", "the web page is not built (run scripts/build-web, or set SOFTATLAS_WEB_DIST to its "
-                              "dist folder)");
+    throw InputError("--web",
+                     "the web page is not built (run scripts/build-web, or set SOFTATLAS_WEB_DIST to its "
+                     "dist folder)");
   for (const char* f : kPageFiles)
     if (!fs::exists(fs::path(dist) / f))
       throw InputError(dist, std::string("the built page lacks ") + f + " (run scripts/build-web)");

@@ -28,9 +28,7 @@ std::vector<char> min_cut(const VoxelCut& p) {
   edges.reserve(static_cast<size_t>(n) * 8);
   cap.reserve(static_cast<size_t>(n) * 8);
   std::vector<uint32_t> first(n + 1);
-  auto capacity = [&](uint32_t v, uint32_t q, int axis) {
-    return q > v ? p.edge[axis][v] : p.edge[axis][q];
-  };
+  auto capacity = [&](uint32_t v, uint32_t q, int axis) { return q > v ? p.edge[axis][v] : p.edge[axis][q]; };
   for (uint32_t v = 0; v < n; ++v) {
     first[v] = static_cast<uint32_t>(edges.size());
     for_each_face_neighbour(d, v, [&](size_t q, int axis) {
@@ -38,15 +36,19 @@ std::vector<char> min_cut(const VoxelCut& p) {
       cap.push_back(capacity(v, static_cast<uint32_t>(q), axis));
     });
     const float pref = p.preference[v];
-    if (pref >= 0) edges.push_back({v, s}), cap.push_back(0.0f);
-    else edges.push_back({v, t}), cap.push_back(-pref);
+    if (pref >= 0)
+      edges.push_back({v, s}), cap.push_back(0.0f);
+    else
+      edges.push_back({v, t}), cap.push_back(-pref);
   }
   first[n] = static_cast<uint32_t>(edges.size());
   std::vector<uint32_t> terminal_slot(n);  // index of s->v or t->v
   for (uint32_t v = 0; v < n; ++v)
-    if (p.preference[v] >= 0) terminal_slot[v] = static_cast<uint32_t>(edges.size()), edges.push_back({s, v}), cap.push_back(p.preference[v]);
+    if (p.preference[v] >= 0)
+      terminal_slot[v] = static_cast<uint32_t>(edges.size()), edges.push_back({s, v}), cap.push_back(p.preference[v]);
   for (uint32_t v = 0; v < n; ++v)
-    if (p.preference[v] < 0) terminal_slot[v] = static_cast<uint32_t>(edges.size()), edges.push_back({t, v}), cap.push_back(0.0f);
+    if (p.preference[v] < 0)
+      terminal_slot[v] = static_cast<uint32_t>(edges.size()), edges.push_back({t, v}), cap.push_back(0.0f);
   const Graph g(boost::edges_are_sorted, edges.begin(), edges.end(), n + 2);
   std::vector<Edge> rev(edges.size());
   for (uint32_t v = 0; v < n; ++v) {
@@ -69,10 +71,10 @@ std::vector<char> min_cut(const VoxelCut& p) {
   const auto eidx = get(boost::edge_index, g);
   const auto vidx = get(boost::vertex_index, g);
   boost::boykov_kolmogorov_max_flow(
-      g, boost::make_iterator_property_map(cap.begin(), eidx), boost::make_iterator_property_map(residual.begin(), eidx),
-      boost::make_iterator_property_map(rev.begin(), eidx), boost::make_iterator_property_map(pred.begin(), vidx),
-      boost::make_iterator_property_map(color.begin(), vidx), boost::make_iterator_property_map(dist.begin(), vidx), vidx,
-      s, t);
+      g, boost::make_iterator_property_map(cap.begin(), eidx),
+      boost::make_iterator_property_map(residual.begin(), eidx), boost::make_iterator_property_map(rev.begin(), eidx),
+      boost::make_iterator_property_map(pred.begin(), vidx), boost::make_iterator_property_map(color.begin(), vidx),
+      boost::make_iterator_property_map(dist.begin(), vidx), vidx, s, t);
   // Boost colours the source tree black; the sink tree white and free voxels grey go to the sink.
   std::vector<char> out(n);
   for (uint32_t v = 0; v < n; ++v) out[v] = color[v] == boost::black_color;

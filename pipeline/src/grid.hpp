@@ -44,7 +44,8 @@ inline std::vector<float> gaussian(const std::vector<float>& in, const std::arra
     const int r = static_cast<int>(std::ceil(3.0 * sigma[axis]));
     std::vector<float> w(2 * r + 1);
     double sum = 0;
-    for (int t = -r; t <= r; ++t) sum += w[t + r] = static_cast<float>(std::exp(-0.5 * t * t / (sigma[axis] * sigma[axis])));
+    for (int t = -r; t <= r; ++t)
+      sum += w[t + r] = static_cast<float>(std::exp(-0.5 * t * t / (sigma[axis] * sigma[axis])));
     for (float& x : w) x = static_cast<float>(x / sum);
     for (size_t id = 0; id < a.size(); ++id) {
       const int c = static_cast<int>((id / stride[axis]) % d[axis]);

@@ -132,9 +132,7 @@ constexpr Row kTable[] = {
     {117, "costal_cartilages"},
 };
 
-bool starts_with(const std::string& s, const char* prefix) {
-  return s.compare(0, std::strlen(prefix), prefix) == 0;
-}
+bool starts_with(const std::string& s, const char* prefix) { return s.compare(0, std::strlen(prefix), prefix) == 0; }
 
 }  // namespace
 
@@ -167,13 +165,30 @@ int default_face_budget(const std::string& name) {
 }
 
 bool is_default_soft_organ(const std::string& name) {
-  static const char* kSoft[] = {"spleen", "kidney_right", "kidney_left", "gallbladder", "liver",
-                                "stomach", "pancreas", "lung_upper_lobe_left",
-                                "lung_lower_lobe_left", "lung_upper_lobe_right",
-                                "lung_middle_lobe_right", "lung_lower_lobe_right", "esophagus",
-                                "trachea", "small_bowel", "duodenum", "colon", "urinary_bladder",
-                                "heart", "aorta", "pulmonary_vein", "inferior_vena_cava",
-                                "portal_vein_and_splenic_vein", "superior_vena_cava",
+  static const char* kSoft[] = {"spleen",
+                                "kidney_right",
+                                "kidney_left",
+                                "gallbladder",
+                                "liver",
+                                "stomach",
+                                "pancreas",
+                                "lung_upper_lobe_left",
+                                "lung_lower_lobe_left",
+                                "lung_upper_lobe_right",
+                                "lung_middle_lobe_right",
+                                "lung_lower_lobe_right",
+                                "esophagus",
+                                "trachea",
+                                "small_bowel",
+                                "duodenum",
+                                "colon",
+                                "urinary_bladder",
+                                "heart",
+                                "aorta",
+                                "pulmonary_vein",
+                                "inferior_vena_cava",
+                                "portal_vein_and_splenic_vein",
+                                "superior_vena_cava",
                                 "pulmonary_artery"};
   for (const char* s : kSoft)
     if (name == s) return true;
@@ -186,12 +201,10 @@ struct Fma {
   const char* fma;
 };
 // FMA ids of the organs (Foundational Model of Anatomy; BodyParts3D file names use them).
-constexpr Fma kFma[] = {{"liver", "FMA7197"},        {"stomach", "FMA7148"},
-                        {"kidney_right", "FMA7204"}, {"kidney_left", "FMA7205"},
-                        {"trachea", "FMA7394"},      {"spleen", "FMA7196"},
-                        {"gallbladder", "FMA7202"},  {"pancreas", "FMA7198"},
-                        {"heart", "FMA7088"},        {"aorta", "FMA3734"},
-                        {"esophagus", "FMA7131"},    {"inferior_vena_cava", "FMA10951"},
+constexpr Fma kFma[] = {{"liver", "FMA7197"},           {"stomach", "FMA7148"},   {"kidney_right", "FMA7204"},
+                        {"kidney_left", "FMA7205"},     {"trachea", "FMA7394"},   {"spleen", "FMA7196"},
+                        {"gallbladder", "FMA7202"},     {"pancreas", "FMA7198"},  {"heart", "FMA7088"},
+                        {"aorta", "FMA3734"},           {"esophagus", "FMA7131"}, {"inferior_vena_cava", "FMA10951"},
                         {"urinary_bladder", "FMA15900"}};
 }  // namespace
 

@@ -183,8 +183,7 @@ double qualified_distance(const Mesh& m, const io::TriMesh& input, const Surface
 // tangential relaxation (keeps the count, evens the angles).
 // Edges sharper than `keep_sharp_deg` (0 = none) are constraints: split and moved only along
 // their own polyline, so a tip's rim or a cut's edge stays where it is.
-Mesh remesh_to_count(const Mesh& input, int budget, const RemeshOptions& o, double keep_sharp_deg,
-                     double* edge_out) {
+Mesh remesh_to_count(const Mesh& input, int budget, const RemeshOptions& o, double keep_sharp_deg, double* edge_out) {
   Mesh base = input;
   auto keep = base.add_property_map<Mesh::Edge_index, bool>("e:keep", false).first;
   if (keep_sharp_deg > 0) PMP::detect_sharp_edges(base, keep_sharp_deg, keep);
@@ -282,8 +281,8 @@ struct Sized_length_cost {
 // border with the refined part is a constraint, split and collapsed along itself); then the
 // collapse to the budget by size-relative length, relaxation with the vertices projected back
 // onto the input. Empty if the refined part alone would take most of the budget.
-Mesh remesh_two_level(const Mesh& input, int budget, const RemeshOptions& o, const MissedPoints& missed,
-                      double edge_mm, const SurfaceTree& input_tree) {
+Mesh remesh_two_level(const Mesh& input, int budget, const RemeshOptions& o, const MissedPoints& missed, double edge_mm,
+                      const SurfaceTree& input_tree) {
   const double fine_mm = 0.5 * edge_mm;
   Mesh m = input;
   m.collect_garbage();
@@ -380,9 +379,13 @@ struct Quadric_cost_with_length {
   const QuadricCost* quadric;
   double weight;  // per mm^2 of squared edge length, against the quadric's mm^2
   template <class TM, class VPM, class GT>
-  void initialize(const TM& m, VPM vpm, const GT& gt) const { quadric->initialize(m, vpm, gt); }
+  void initialize(const TM& m, VPM vpm, const GT& gt) const {
+    quadric->initialize(m, vpm, gt);
+  }
   template <class Profile, class V>
-  void update_after_collapse(const Profile& p, V v) const { quadric->update_after_collapse(p, v); }
+  void update_after_collapse(const Profile& p, V v) const {
+    quadric->update_after_collapse(p, v);
+  }
   template <class Profile>
   boost::optional<typename Profile::FT> operator()(const Profile& p,
                                                    const boost::optional<typename Profile::Point>& placement) const {
@@ -515,8 +518,7 @@ RemeshResult repair_and_remesh(const io::TriMesh& input, const RemeshOptions& o,
   }
   if (o.face_budget < 4 * components)
     throw InputError(where, "face budget " + std::to_string(o.face_budget) + " is below what " +
-                                std::to_string(components) +
-                                " closed pieces can have (at least 4 faces each)");
+                                std::to_string(components) + " closed pieces can have (at least 4 faces each)");
   const Mesh repaired = mesh;
   Mesh chosen;
   for (int round = 0; round < 2; ++round) {

@@ -165,7 +165,8 @@ std::vector<int16_t> seeded_cut(const Volume& ct, const std::vector<float>& smoo
           for (int x = -reach[0]; x <= reach[0]; ++x) {
             const double r2 = (x * sp[0]) * (x * sp[0]) + (y * sp[1]) * (y * sp[1]) + (z * sp[2]) * (z * sp[2]);
             const int a = c[0] + x, b = c[1] + y, e = c[2] + z;
-            if (r2 > o.seed_radius_mm * o.seed_radius_mm || a < 0 || b < 0 || e < 0 || a >= d[0] || b >= d[1] || e >= d[2])
+            if (r2 > o.seed_radius_mm * o.seed_radius_mm || a < 0 || b < 0 || e < 0 || a >= d[0] || b >= d[1] ||
+                e >= d[2])
               continue;
             samples[r].push_back(smooth[ct.index(a, b, e)]);
           }
@@ -175,10 +176,13 @@ std::vector<int16_t> seeded_cut(const Volume& ct, const std::vector<float>& smoo
   for (const auto& [name, threshold] : std::vector<std::pair<std::string, double>>{
            {"aorta", 130}, {"liver", 80}, {"spleen", 80}, {"kidney_left", 80}, {"kidney_right", 80}})
     for (size_t r = 0; r < organs.size() && phase_from.empty(); ++r)
-      if (label_name(organs[r].id) == name) phase_hu = median(samples[r]), phase_threshold = threshold, phase_from = name;
+      if (label_name(organs[r].id) == name)
+        phase_hu = median(samples[r]), phase_threshold = threshold, phase_from = name;
   const bool enhanced = !phase_from.empty() && phase_hu > phase_threshold;
   std::fprintf(stderr, "[softatlas segment] graph cut; contrast phase: %s (%s seeds median %.0f HU); noise %.0f HU\n",
-               phase_from.empty() ? "unknown, no prior" : enhanced ? "enhanced" : "unenhanced",
+               phase_from.empty() ? "unknown, no prior"
+               : enhanced         ? "enhanced"
+                                  : "unenhanced",
                phase_from.empty() ? "no aorta/liver/spleen/kidney" : phase_from.c_str(), phase_hu, noise);
 
   // Per organ: data term (nats per voxel) cached over the whole grid is too large for many
@@ -200,7 +204,8 @@ std::vector<int16_t> seeded_cut(const Volume& ct, const std::vector<float>& smoo
     const double cnt = std::max<double>(1, samples[r].size()), mu = s1 / cnt;
     const double sd = std::clamp(std::sqrt(std::max(0.0, s2 / cnt - mu * mu)), 20.0, o.intensity_sigma_max_hu);
     std::vector<double> window(kBins, 0.0);
-    for (int b = bin_of(mu - o.intensity_sigma_scale * sd); b <= bin_of(mu + o.intensity_sigma_scale_high * sd); ++b) window[b] = 1;
+    for (int b = bin_of(mu - o.intensity_sigma_scale * sd); b <= bin_of(mu + o.intensity_sigma_scale_high * sd); ++b)
+      window[b] = 1;
     const std::vector<double> pw = density(window, h);
     for (int b = 0; b < kBins; ++b) p[b] = (1 - o.cut_window_weight) * p[b] + o.cut_window_weight * pw[b];
     const double prior_hu = enhanced ? pr.enhanced_hu : pr.unenhanced_hu;
@@ -212,7 +217,8 @@ std::vector<int16_t> seeded_cut(const Volume& ct, const std::vector<float>& smoo
     }
     gain[r].resize(kBins);
     for (int b = 0; b < kBins; ++b)
-      gain[r][b] = static_cast<float>(std::clamp(std::log((p[b] + 1e-7) / (p_image[b] + 1e-7)), -o.cut_max_nats, o.cut_max_nats));
+      gain[r][b] = static_cast<float>(
+          std::clamp(std::log((p[b] + 1e-7) / (p_image[b] + 1e-7)), -o.cut_max_nats, o.cut_max_nats));
   }
 
   std::vector<int16_t> owner(n, -1);
@@ -279,7 +285,8 @@ std::vector<int16_t> seeded_cut(const Volume& ct, const std::vector<float>& smoo
         const auto c = ijk(v);
         for (int a = 0; a < 3; ++a)
           if (c[a] < lo[a] || c[a] > hi[a]) return -1;
-        return (c[0] - lo[0]) + static_cast<long>(cut.dims[0]) * ((c[1] - lo[1]) + static_cast<long>(cut.dims[1]) * (c[2] - lo[2]));
+        return (c[0] - lo[0]) +
+               static_cast<long>(cut.dims[0]) * ((c[1] - lo[1]) + static_cast<long>(cut.dims[1]) * (c[2] - lo[2]));
       };
       for (size_t s : background)
         if (long b = local(s); b >= 0) cut.preference[b] = -hard;
@@ -294,16 +301,19 @@ std::vector<int16_t> seeded_cut(const Volume& ct, const std::vector<float>& smoo
       for (char c : inside) count += c;
       const double ml = count * voxel_mm3 / 1000.0;
       if (ml > priors[r].max_ml && attempt < 2) {
-        std::fprintf(stderr, "[softatlas segment] %s: %.0f mL exceeds its bound of %.0f mL; cut again with a doubled distance prior\n",
-                     name.c_str(), ml, priors[r].max_ml);
+        std::fprintf(
+            stderr,
+            "[softatlas segment] %s: %.0f mL exceeds its bound of %.0f mL; cut again with a doubled distance prior\n",
+            name.c_str(), ml, priors[r].max_ml);
         distance_weight *= 2;
         continue;
       }
       if (ml > priors[r].max_ml)
-        std::fprintf(stderr, "[softatlas segment] warning: %s: %.0f mL is above the plausible %.0f mL (check the seeds)\n",
+        std::fprintf(stderr,
+                     "[softatlas segment] warning: %s: %.0f mL is above the plausible %.0f mL (check the seeds)\n",
                      name.c_str(), ml, priors[r].max_ml);
-      std::fprintf(stderr, "[softatlas segment] %s: %zu seeds, box %dx%dx%d, %.1f mL\n", name.c_str(), organs[r].seeds.size(),
-                   cut.dims[0], cut.dims[1], cut.dims[2], ml);
+      std::fprintf(stderr, "[softatlas segment] %s: %zu seeds, box %dx%dx%d, %.1f mL\n", name.c_str(),
+                   organs[r].seeds.size(), cut.dims[0], cut.dims[1], cut.dims[2], ml);
       for (size_t b = 0; b < m; ++b) {
         if (!inside[b]) continue;
         const size_t v = global(b);

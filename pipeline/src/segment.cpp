@@ -141,7 +141,8 @@ Seeds read_seeds(const std::string& path) {
       if (!kv.first.IsScalar()) throw InputError(mark(path, kv.first), "expected a name as the key");
       const std::string key = kv.first.as<std::string>();
       if (key == "organs") {
-        if (!kv.second.IsMap()) throw InputError(mark(path, kv.second), "organs: expected a map organ: [[x, y, z], ...]");
+        if (!kv.second.IsMap())
+          throw InputError(mark(path, kv.second), "organs: expected a map organ: [[x, y, z], ...]");
         for (const auto& o : kv.second) {
           if (!o.first.IsScalar()) throw InputError(mark(path, o.first), "organs: expected an organ name as the key");
           const std::string name = o.first.as<std::string>();
@@ -216,7 +217,8 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
                  name.c_str(), r.seeds.size(), r.mu, r.sigma, r.lo, r.hi);
     regions.push_back(r);
   }
-  if (!seeds.background.empty()) regions.push_back(Region{0, 0, 100.0, false, 0, 0, seed_voxels(seeds.background, "background")});
+  if (!seeds.background.empty())
+    regions.push_back(Region{0, 0, 100.0, false, 0, 0, seed_voxels(seeds.background, "background")});
 
   // Growth, walls and tubes read the image smoothed at about the voxel size (CT noise of
   // 50-80 HU per voxel would otherwise decide where fronts meet).
@@ -228,8 +230,10 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     std::vector<CutOrgan> organs;
     std::vector<size_t> background;
     for (const auto& R : regions) {
-      if (R.id != 0) organs.push_back({R.id, R.seeds});
-      else background.insert(background.end(), R.seeds.begin(), R.seeds.end());
+      if (R.id != 0)
+        organs.push_back({R.id, R.seeds});
+      else
+        background.insert(background.end(), R.seeds.begin(), R.seeds.end());
     }
     owner = seeded_cut(ct, smooth, organs, background, o);
   } else if (o.method == "growth") {
@@ -281,10 +285,12 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
   std::vector<char> vessel_wall(n, 0);
   for (size_t r = 0; r < regions.size(); ++r) {
     if (regions[r].id == 0 || o.method != "growth" ||  // the tube and wall models belong to the growth
-        std::none_of(o.tubes.begin(), o.tubes.end(), [&](const std::string& t) { return label_id(t) == regions[r].id; }))
+        std::none_of(o.tubes.begin(), o.tubes.end(),
+                     [&](const std::string& t) { return label_id(t) == regions[r].id; }))
       continue;
     std::vector<char> other(n, 0);
-    for (size_t id = 0; id < n; ++id) other[id] = owner[id] >= 0 && owner[id] != static_cast<int16_t>(r) && regions[owner[id]].id != 0;
+    for (size_t id = 0; id < n; ++id)
+      other[id] = owner[id] >= 0 && owner[id] != static_cast<int16_t>(r) && regions[owner[id]].id != 0;
     for (const auto& R : regions)  // a background click is never inside the tube
       if (R.id == 0)
         for (size_t s : R.seeds) other[s] = 1;
@@ -293,7 +299,8 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     to.bright_hu = regions[r].lo + 0.5 * regions[r].sigma;
     to.lumen_min_hu = o.tube_lumen_min_hu;
     TubeReport rep;
-    const std::vector<char> tube = vessel_tube(d, sp.data(), smooth, owner, static_cast<int>(r), other, regions[r].seeds, to, &rep);
+    const std::vector<char> tube =
+        vessel_tube(d, sp.data(), smooth, owner, static_cast<int>(r), other, regions[r].seeds, to, &rep);
     if (tube.empty()) {
       std::fprintf(stderr, "[softatlas segment] %s: no tube (the seeds give no centreline), region kept\n",
                    label_name(regions[r].id).c_str());
@@ -313,8 +320,10 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     size_t kept = 0, added = 0, dropped = 0;
     for (size_t id = 0; id < n; ++id) {
       if (owner[id] == static_cast<int16_t>(r)) {
-        if (tube[id] != 0) ++kept, vessel_wall[id] = 0;
-        else owner[id] = -1, ++dropped;
+        if (tube[id] != 0)
+          ++kept, vessel_wall[id] = 0;
+        else
+          owner[id] = -1, ++dropped;
       } else if (tube[id] == kTubeInside) {
         owner[id] = static_cast<int16_t>(r), ++added;
       }
@@ -322,7 +331,8 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
     std::fprintf(stderr,
                  "[softatlas segment] %s: tube of %zu sections, %.0f mm long, median radius %.1f mm; %zu voxels kept, "
                  "%zu added, %zu outside dropped\n",
-                 label_name(regions[r].id).c_str(), rep.sections, rep.length_mm, rep.median_radius_mm, kept, added, dropped);
+                 label_name(regions[r].id).c_str(), rep.sections, rep.length_mm, rep.median_radius_mm, kept, added,
+                 dropped);
   }
 
   // Walls (the heart's myocardium): a second ordered propagation by geodesic distance in mm from
@@ -340,7 +350,8 @@ Volume segment_seeded(const Volume& ct, const Seeds& seeds, const SegmentOptions
       }
   if (widest > 0) {  // some seeded organ has a wall
     for (size_t r = 0; r < regions.size(); ++r)
-      if (regions[r].id == 0) wall_min[r] = lowest, wall_mm[r] = widest, wall_hi[r] = std::numeric_limits<double>::infinity();
+      if (regions[r].id == 0)
+        wall_min[r] = lowest, wall_mm[r] = widest, wall_hi[r] = std::numeric_limits<double>::infinity();
     auto is_organ = [&](size_t id) { return owner[id] >= 0 && regions[owner[id]].id != 0; };
     std::vector<float> dist(n, std::numeric_limits<float>::infinity());
     std::vector<int16_t> front(n, -1);

@@ -31,15 +31,16 @@ double component_signed_volume(const io::TriMesh& m, const std::vector<int>& com
     const double* p1 = &m.vertices[3 * m.faces[3 * f + 1]];
     const double* p2 = &m.vertices[3 * m.faces[3 * f + 2]];
     v += (p0[0] * (p1[1] * p2[2] - p1[2] * p2[1]) - p0[1] * (p1[0] * p2[2] - p1[2] * p2[0]) +
-          p0[2] * (p1[0] * p2[1] - p1[1] * p2[0])) / 6.0;
+          p0[2] * (p1[0] * p2[1] - p1[1] * p2[0])) /
+         6.0;
   }
   return v;
 }
 
 }  // namespace
 
-SurfaceResult label_surface(const Volume& labels, const std::vector<int>& values,
-                            const SurfaceOptions& options, const std::string& where) {
+SurfaceResult label_surface(const Volume& labels, const std::vector<int>& values, const SurfaceOptions& options,
+                            const std::string& where) {
   SurfaceResult out;
   const std::set<int> wanted(values.begin(), values.end());
   const int nx = labels.dims[0], ny = labels.dims[1], nz = labels.dims[2];
@@ -76,7 +77,8 @@ SurfaceResult label_surface(const Volume& labels, const std::vector<int>& values
     for (int j = lo[1]; j <= hi[1]; ++j)
       for (int i = lo[0]; i <= hi[0]; ++i)
         if (in(labels.index(i, j, k)))
-          m[(i - lo[0] + 1) + static_cast<size_t>(ex) * ((j - lo[1] + 1) + static_cast<size_t>(ey) * (k - lo[2] + 1))] = 1;
+          m[(i - lo[0] + 1) + static_cast<size_t>(ex) * ((j - lo[1] + 1) + static_cast<size_t>(ey) * (k - lo[2] + 1))] =
+              1;
 
   vtkNew<vtkDiscreteFlyingEdges3D> flying_edges;
   flying_edges->SetInputData(mask);
@@ -143,7 +145,8 @@ SurfaceResult label_surface(const Volume& labels, const std::vector<int>& values
     ++out.pieces_kept;
     if (share > options.large_piece_share) ++out.large_pieces;
   }
-  for (size_t f = 0; f < mesh.face_count(); ++f) keep[f] = std::abs(vol[comp[f]]) / std::max(total, 1e-12) >= options.speck_share;
+  for (size_t f = 0; f < mesh.face_count(); ++f)
+    keep[f] = std::abs(vol[comp[f]]) / std::max(total, 1e-12) >= options.speck_share;
   // Outward: flip every kept piece whose signed volume is negative. Cavities (a piece inside
   // another) do not occur for a label's outer boundary at this stage, because the discrete
   // surface of a hollow label would be two nested pieces; those are flipped the same way and

@@ -93,9 +93,10 @@ SurfaceReport inspect_surface(const io::TriMesh& mesh) {
     }
     const double* p[3] = {&V[3 * t[0]], &V[3 * t[1]], &V[3 * t[2]]};
     // Signed volume by the divergence theorem: sum of p0 . (p1 x p2) / 6.
-    r.signed_volume_mm3 += (p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) -
-                            p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0]) +
-                            p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0])) / 6.0;
+    r.signed_volume_mm3 +=
+        (p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) - p[0][1] * (p[1][0] * p[2][2] - p[1][2] * p[2][0]) +
+         p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0])) /
+        6.0;
     double smallest = 180.0;
     for (int c = 0; c < 3; ++c) {
       const double* o = p[c];

@@ -32,7 +32,8 @@ struct Grid {
   std::array<int, 3> d;
   double sp[3];
   size_t index(int i, int j, int k) const {
-    return static_cast<size_t>(i) + static_cast<size_t>(d[0]) * (static_cast<size_t>(j) + static_cast<size_t>(d[1]) * k);
+    return static_cast<size_t>(i) +
+           static_cast<size_t>(d[0]) * (static_cast<size_t>(j) + static_cast<size_t>(d[1]) * k);
   }
   std::array<int, 3> ijk(size_t id) const {
     return {static_cast<int>(id % d[0]), static_cast<int>((id / d[0]) % d[1]),
@@ -363,7 +364,8 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
   // The last samples at each end see a one-sided window, and the path there wanders to a seed
   // that may lie anywhere in the lumen: their tangents can lie across the vessel. They are
   // dropped; the end extension below walks the vessel on from the clean part.
-  if (pts.size() >= 8 * static_cast<size_t>(o.end_trim)) pts = std::vector<Vec3>(pts.begin() + o.end_trim, pts.end() - o.end_trim);
+  if (pts.size() >= 8 * static_cast<size_t>(o.end_trim))
+    pts = std::vector<Vec3>(pts.begin() + o.end_trim, pts.end() - o.end_trim);
   if (pts.size() < 3) return {};
   auto tangent = [](const std::vector<Vec3>& p, size_t i) {
     const size_t lo = i > 1 ? i - 2 : 0, hi = std::min(i + 2, p.size() - 1);
@@ -371,7 +373,8 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
   };
   std::vector<Section> sec(pts.size());
   for (int pass = 0; pass < 3; ++pass) {
-    for (size_t i = 0; i < pts.size(); ++i) sec[i] = fit_section(g, smooth, other_organ, ours, pts[i], tangent(pts, i), o);
+    for (size_t i = 0; i < pts.size(); ++i)
+      sec[i] = fit_section(g, smooth, other_organ, ours, pts[i], tangent(pts, i), o);
     for (size_t i = 0; i < pts.size(); ++i)
       if (sec[i].r > 0) pts[i] = sec[i].c;
     smooth_points(pts, 3);
@@ -458,8 +461,10 @@ std::vector<char> vessel_tube(const std::array<int, 3>& dims, const double spaci
           const size_t id = g.index(i, j, k);
           const double q2 = dot(p - q, p - q);
           if (other_organ[id] || q2 > (r + o.wall_mm) * (r + o.wall_mm)) continue;
-          if (q2 <= r * r) tube[id] = kTubeInside;
-          else if (tube[id] == 0) tube[id] = kTubeWall;
+          if (q2 <= r * r)
+            tube[id] = kTubeInside;
+          else if (tube[id] == 0)
+            tube[id] = kTubeWall;
         }
   }
   // Beyond the last sections, the grown region continues the vessel where no round section was

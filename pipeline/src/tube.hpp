@@ -40,7 +40,7 @@ struct TubeOptions {
   double step_mm = 2.0;       // spacing of the cross-sections along the centreline
   double max_radius_mm = 30;  // rays longer than this are cut
   int rays = 48;
-  int end_trim = 5;  // centreline samples dropped at each end before fitting (paths of 8x as many or more)
+  int end_trim = 5;          // centreline samples dropped at each end before fitting (paths of 8x as many or more)
   double max_turn_deg = 30;  // the ends are extended while they turn less than this
   // The rays end at the fat outside the vessel wall; the label is the lumen (TotalSegmentator's
   // aorta: the voxels just outside it read a median 95 HU on the chest crop, the wall, not fat).

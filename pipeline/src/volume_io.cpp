@@ -77,15 +77,14 @@ struct VtkErrors {
 class CapturedOutputWindow : public vtkOutputWindow {
  public:
   static CapturedOutputWindow* New();
-  vtkTypeMacro(CapturedOutputWindow, vtkOutputWindow)
-  void DisplayText(const char* text) override {
+  vtkTypeMacro(CapturedOutputWindow, vtkOutputWindow) void DisplayText(const char* text) override {
     if (text && first.empty()) first = text;
   }
   std::string first;
 };
 vtkStandardNewMacro(CapturedOutputWindow)
 
-struct CaptureVtkOutput {
+    struct CaptureVtkOutput {
   vtkSmartPointer<vtkOutputWindow> previous = vtkOutputWindow::GetInstance();
   vtkNew<CapturedOutputWindow> window;
   CaptureVtkOutput() { vtkOutputWindow::SetInstance(window); }
@@ -103,8 +102,8 @@ std::string one_line(std::string s) {
 }
 
 // Runs a VTK image reader, copies the scalars (first component) as float.
-void read_vtk_voxels(vtkImageReader2* reader, const std::string& path, Volume* out,
-                     std::array<double, 3>* spacing, std::array<double, 3>* origin) {
+void read_vtk_voxels(vtkImageReader2* reader, const std::string& path, Volume* out, std::array<double, 3>* spacing,
+                     std::array<double, 3>* origin) {
   CaptureVtkOutput console;
   VtkErrors errors;
   vtkNew<vtkCallbackCommand> cb;
@@ -134,17 +133,36 @@ void read_vtk_voxels(vtkImageReader2* reader, const std::string& path, Volume* o
     for (size_t i = 0; i < n; ++i) out->values[i] = static_cast<float>(p[i * nc]);
   };
   switch (scalars->GetDataType()) {
-    case VTK_UNSIGNED_CHAR: copy(static_cast<unsigned char*>(raw)); break;
-    case VTK_SIGNED_CHAR: copy(static_cast<signed char*>(raw)); break;
-    case VTK_CHAR: copy(static_cast<char*>(raw)); break;
-    case VTK_SHORT: copy(static_cast<short*>(raw)); break;
-    case VTK_UNSIGNED_SHORT: copy(static_cast<unsigned short*>(raw)); break;
-    case VTK_INT: copy(static_cast<int*>(raw)); break;
-    case VTK_UNSIGNED_INT: copy(static_cast<unsigned int*>(raw)); break;
-    case VTK_FLOAT: copy(static_cast<float*>(raw)); break;
-    case VTK_DOUBLE: copy(static_cast<double*>(raw)); break;
+    case VTK_UNSIGNED_CHAR:
+      copy(static_cast<unsigned char*>(raw));
+      break;
+    case VTK_SIGNED_CHAR:
+      copy(static_cast<signed char*>(raw));
+      break;
+    case VTK_CHAR:
+      copy(static_cast<char*>(raw));
+      break;
+    case VTK_SHORT:
+      copy(static_cast<short*>(raw));
+      break;
+    case VTK_UNSIGNED_SHORT:
+      copy(static_cast<unsigned short*>(raw));
+      break;
+    case VTK_INT:
+      copy(static_cast<int*>(raw));
+      break;
+    case VTK_UNSIGNED_INT:
+      copy(static_cast<unsigned int*>(raw));
+      break;
+    case VTK_FLOAT:
+      copy(static_cast<float*>(raw));
+      break;
+    case VTK_DOUBLE:
+      copy(static_cast<double*>(raw));
+      break;
     default:
-      for (size_t i = 0; i < n; ++i) out->values[i] = static_cast<float>(scalars->GetComponent(static_cast<vtkIdType>(i), 0));
+      for (size_t i = 0; i < n; ++i)
+        out->values[i] = static_cast<float>(scalars->GetComponent(static_cast<vtkIdType>(i), 0));
   }
   double sp[3], org[3];
   image->GetSpacing(sp);
@@ -154,10 +172,10 @@ void read_vtk_voxels(vtkImageReader2* reader, const std::string& path, Volume* o
 }
 
 // Sane limits for a CT or label map: beyond these a header field is corrupt, not a big scan.
-constexpr double kMaxVoxels = 2.0e9;          // 2 G voxels (a 1024 x 1024 x 2000 CT)
-constexpr double kMaxDim = 100000;            // voxels along one axis
+constexpr double kMaxVoxels = 2.0e9;  // 2 G voxels (a 1024 x 1024 x 2000 CT)
+constexpr double kMaxDim = 100000;    // voxels along one axis
 constexpr double kMinSpacingMm = 1e-3, kMaxSpacingMm = 1e3;
-constexpr double kMaxWorldMm = 1e4;           // 10 m from the scanner origin
+constexpr double kMaxWorldMm = 1e4;  // 10 m from the scanner origin
 
 // Bytes of a file after gzip decompression (a plain file: its size). Counts the whole stream
 // with zlib, so that a truncated or corrupt stream is found before any reader sees it.
@@ -206,8 +224,8 @@ NiftiHeader check_nifti_header(const std::string& path) {
   const int got = gzread(f, h, sizeof(h));
   gzclose(f);
   if (got < 348)
-    throw InputError(path, "truncated NIfTI header (" + std::to_string(std::max(got, 0)) +
-                               " bytes, expected at least 348)");
+    throw InputError(path,
+                     "truncated NIfTI header (" + std::to_string(std::max(got, 0)) + " bytes, expected at least 348)");
   NiftiHeader n;
   auto raw32 = [&](int off) {
     uint32_t u;
@@ -244,14 +262,11 @@ NiftiHeader check_nifti_header(const std::string& path) {
     n.swap = true;
     sizeof_hdr = i32(0);
   }
-  auto bad = [&](const std::string& field, const std::string& what) {
-    return InputError(path + ": " + field, what);
-  };
+  auto bad = [&](const std::string& field, const std::string& what) { return InputError(path + ": " + field, what); };
   if (sizeof_hdr == 348) {
     n.version = 1;
     n.header_size = 348;
-    if (std::memcmp(h + 344, "n+1", 4) != 0)
-      throw bad("magic", "expected 'n+1' (a single-file NIfTI-1 .nii)");
+    if (std::memcmp(h + 344, "n+1", 4) != 0) throw bad("magic", "expected 'n+1' (a single-file NIfTI-1 .nii)");
     for (int d = 0; d < 8; ++d) n.dim[d] = i16(40 + 2 * d);
     n.datatype = i16(70);
     n.bitpix = i16(72);
@@ -292,15 +307,19 @@ NiftiHeader check_nifti_header(const std::string& path) {
   double voxels = 1;
   for (int d = 1; d <= n.dim[0]; ++d) {
     if (n.dim[d] < 1 || n.dim[d] > kMaxDim)
-      throw bad("dim[" + std::to_string(d) + "]", "expected 1.." + std::to_string(static_cast<long>(kMaxDim)) +
-                                                    ", got " + std::to_string(n.dim[d]));
+      throw bad("dim[" + std::to_string(d) + "]",
+                "expected 1.." + std::to_string(static_cast<long>(kMaxDim)) + ", got " + std::to_string(n.dim[d]));
     if (d > 3 && n.dim[d] != 1)
-      throw bad("dim[" + std::to_string(d) + "]", "expected a 3-D volume (dim[4..7] = 1), got " + std::to_string(n.dim[d]));
+      throw bad("dim[" + std::to_string(d) + "]",
+                "expected a 3-D volume (dim[4..7] = 1), got " + std::to_string(n.dim[d]));
     voxels *= static_cast<double>(n.dim[d]);
   }
   if (voxels > kMaxVoxels) throw bad("dim", "more than 2e9 voxels (" + std::to_string(voxels) + ")");
-  struct Type { int code, bits; };
-  static const Type kTypes[] = {{2, 8}, {4, 16}, {8, 32}, {16, 32}, {64, 64}, {256, 8}, {512, 16}, {768, 32}, {1024, 64}, {1280, 64}};
+  struct Type {
+    int code, bits;
+  };
+  static const Type kTypes[] = {{2, 8},   {4, 16},   {8, 32},   {16, 32},   {64, 64},
+                                {256, 8}, {512, 16}, {768, 32}, {1024, 64}, {1280, 64}};
   const Type* type = nullptr;
   for (const Type& t : kTypes)
     if (t.code == n.datatype) type = &t;
@@ -318,16 +337,18 @@ NiftiHeader check_nifti_header(const std::string& path) {
   for (int d = 1; d <= 3; ++d) {
     const double s = d <= n.dim[0] ? std::abs(n.pixdim[d]) : 1.0;
     if (!std::isfinite(s) || s < kMinSpacingMm || s > kMaxSpacingMm)
-      throw bad("pixdim[" + std::to_string(d) + "]", "voxel size must be finite and in 0.001..1000 mm, got " +
-                                                        std::to_string(n.pixdim[d]));
+      throw bad("pixdim[" + std::to_string(d) + "]",
+                "voxel size must be finite and in 0.001..1000 mm, got " + std::to_string(n.pixdim[d]));
   }
   if (!std::isfinite(n.pixdim[0])) throw bad("pixdim[0]", "qfac must be finite");
   if (!std::isfinite(n.scl_slope) || !std::isfinite(n.scl_inter) || std::abs(n.scl_slope) > 1e6 ||
       std::abs(n.scl_inter) > 1e9)
     throw bad(std::isfinite(n.scl_slope) && std::abs(n.scl_slope) <= 1e6 ? "scl_inter" : "scl_slope",
               "rescale must be finite (|slope| <= 1e6, |intercept| <= 1e9)");
-  if (n.qform_code < 0 || n.qform_code > 5) throw bad("qform_code", "expected 0..5, got " + std::to_string(n.qform_code));
-  if (n.sform_code < 0 || n.sform_code > 5) throw bad("sform_code", "expected 0..5, got " + std::to_string(n.sform_code));
+  if (n.qform_code < 0 || n.qform_code > 5)
+    throw bad("qform_code", "expected 0..5, got " + std::to_string(n.qform_code));
+  if (n.sform_code < 0 || n.sform_code > 5)
+    throw bad("sform_code", "expected 0..5, got " + std::to_string(n.sform_code));
   if (n.qform_code > 0) {
     double q2 = 0;
     for (int k = 0; k < 3; ++k) {
@@ -343,8 +364,8 @@ NiftiHeader check_nifti_header(const std::string& path) {
       if (!std::isfinite(n.srow[k]) || std::abs(n.srow[k]) > (k % 4 == 3 ? kMaxWorldMm : kMaxSpacingMm))
         throw bad(std::string("srow_") + "xyz"[k / 4], "sform must be finite (axes <= 1000 mm, offset within 10 m)");
     const double* m = n.srow;
-    const double det = m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) +
-                       m[2] * (m[4] * m[9] - m[5] * m[8]);
+    const double det =
+        m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) + m[2] * (m[4] * m[9] - m[5] * m[8]);
     if (!(std::abs(det) > 1e-12)) throw bad("srow", "sform is singular (its axes are not independent)");
   }
   // The stream must hold every voxel the header promises.
@@ -363,8 +384,8 @@ std::map<int, std::string> parse_label_table(const std::string& xml, const std::
   pugi::xml_document doc;
   const pugi::xml_parse_result r = doc.load_buffer(xml.data(), xml.size(), pugi::parse_default, pugi::encoding_utf8);
   if (!r)
-    throw InputError(path + ": LabelTable", std::string("malformed XML in the header extension (") +
-                                                r.description() + " at byte " + std::to_string(r.offset) + ")");
+    throw InputError(path + ": LabelTable", std::string("malformed XML in the header extension (") + r.description() +
+                                                " at byte " + std::to_string(r.offset) + ")");
   for (const pugi::xpath_node& xn : doc.select_nodes("//LabelTable/Label")) {
     const pugi::xml_node label = xn.node();
     const std::string key_text = label.attribute("Key").value();
@@ -372,7 +393,8 @@ std::map<int, std::string> parse_label_table(const std::string& xml, const std::
     errno = 0;
     const long key = std::strtol(key_text.c_str(), &end, 10);
     if (key_text.empty() || *end != '\0' || errno == ERANGE || key < -2147483647L || key > 2147483647L)
-      throw InputError(path + ": LabelTable", "Label Key must be an integer, got '" + io::printable_text(key_text) + "'");
+      throw InputError(path + ": LabelTable",
+                       "Label Key must be an integer, got '" + io::printable_text(key_text) + "'");
     std::string name = label.child_value();
     if (name.empty())
       for (const pugi::xml_node c : label.children())
@@ -495,7 +517,7 @@ TextHeader read_text_header(const std::string& path, char sep, const char* forma
     std::string line = head.substr(pos, e - pos);
     pos = e + 1;
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (nrrd && line.empty()) break;  // NRRD: blank line ends the header
+    if (nrrd && line.empty()) break;                         // NRRD: blank line ends the header
     if (nrrd && (line_no == 1 || line[0] == '#')) continue;  // magic and comments
     const auto p = line.find(sep);
     if (p == std::string::npos) {
@@ -507,7 +529,8 @@ TextHeader read_text_header(const std::string& path, char sep, const char* forma
     value = trim(value);
     if (key.empty()) throw InputError(path + ":" + std::to_string(line_no), "empty field name");
     if (h.kv.count(key))
-      throw InputError(path + ": " + io::printable_text(key), std::string("field given twice in the ") + format + " header");
+      throw InputError(path + ": " + io::printable_text(key),
+                       std::string("field given twice in the ") + format + " header");
     h.kv[key] = value;
     if (!nrrd && key == "elementdatafile") break;  // MetaImage: data follows
   }
@@ -516,8 +539,7 @@ TextHeader read_text_header(const std::string& path, char sep, const char* forma
 }
 
 // The numbers of a header field, each a whole finite token; `count` of them (0: any number).
-std::vector<double> numbers(const std::string& path, const std::string& field, std::string s,
-                            size_t count) {
+std::vector<double> numbers(const std::string& path, const std::string& field, std::string s, size_t count) {
   for (char& c : s)
     if (c == '(' || c == ')' || c == ',') c = ' ';
   std::istringstream is(s);
@@ -531,15 +553,16 @@ std::vector<double> numbers(const std::string& path, const std::string& field, s
     out.push_back(x);
   }
   if (count && out.size() != count)
-    throw InputError(path + ": " + field, "expected " + std::to_string(count) + " numbers, got " +
-                                              std::to_string(out.size()));
+    throw InputError(path + ": " + field,
+                     "expected " + std::to_string(count) + " numbers, got " + std::to_string(out.size()));
   return out;
 }
 
 // Positive whole numbers (sizes of the grid), product within the voxel limit.
 std::array<int, 3> grid_sizes(const std::string& path, const std::string& field, const std::string& text) {
   const auto s = numbers(path, field, text, 0);
-  if (s.size() != 3) throw InputError(path + ": " + field, "expected a 3-D volume (three sizes), got " + std::to_string(s.size()));
+  if (s.size() != 3)
+    throw InputError(path + ": " + field, "expected a 3-D volume (three sizes), got " + std::to_string(s.size()));
   std::array<int, 3> d{};
   double total = 1;
   for (int k = 0; k < 3; ++k) {
@@ -554,8 +577,7 @@ std::array<int, 3> grid_sizes(const std::string& path, const std::string& field,
 
 // Affine from axis vectors (columns, world units per voxel step) and origin, in `space`;
 // LPS spaces are turned into RAS by negating x and y.
-Mat4 affine_from(const std::array<std::array<double, 3>, 3>& axes, const std::array<double, 3>& o,
-                 bool lps) {
+Mat4 affine_from(const std::array<std::array<double, 3>, 3>& axes, const std::array<double, 3>& o, bool lps) {
   Mat4 a = identity4();
   const double s[3] = {lps ? -1.0 : 1.0, lps ? -1.0 : 1.0, 1.0};
   for (int r = 0; r < 3; ++r) {
@@ -583,7 +605,8 @@ std::string inflate_at_most(const std::string& packed, size_t limit, const std::
   } while (rc == Z_OK && data.size() < limit);
   inflateEnd(&zs);
   if (rc != Z_STREAM_END && data.size() < limit)
-    throw InputError(where, "corrupt or truncated compressed data (" + std::string(rc == Z_BUF_ERROR ? "ends early" : "bad zlib stream") + ")");
+    throw InputError(where, "corrupt or truncated compressed data (" +
+                                std::string(rc == Z_BUF_ERROR ? "ends early" : "bad zlib stream") + ")");
   if (data.size() > limit) data.resize(limit);
   return data;
 }
@@ -627,15 +650,47 @@ void decode_samples(const std::string& data, size_t n, int bytes, char kind, boo
       for (size_t k = 0; k < nb / 2; ++k) std::swap(b[k], b[nb - 1 - k]);
     double x = 0;
     if (kind == 'f') {
-      if (bytes == 4) { float f; std::memcpy(&f, b, 4); x = f; } else { double dd; std::memcpy(&dd, b, 8); x = dd; }
+      if (bytes == 4) {
+        float f;
+        std::memcpy(&f, b, 4);
+        x = f;
+      } else {
+        double dd;
+        std::memcpy(&dd, b, 8);
+        x = dd;
+      }
     } else if (bytes == 1) {
       x = is_signed ? static_cast<double>(static_cast<int8_t>(b[0])) : b[0];
     } else if (bytes == 2) {
-      if (is_signed) { int16_t s16; std::memcpy(&s16, b, 2); x = s16; } else { uint16_t u16; std::memcpy(&u16, b, 2); x = u16; }
+      if (is_signed) {
+        int16_t s16;
+        std::memcpy(&s16, b, 2);
+        x = s16;
+      } else {
+        uint16_t u16;
+        std::memcpy(&u16, b, 2);
+        x = u16;
+      }
     } else if (bytes == 4) {
-      if (is_signed) { int32_t s32; std::memcpy(&s32, b, 4); x = s32; } else { uint32_t u32; std::memcpy(&u32, b, 4); x = u32; }
+      if (is_signed) {
+        int32_t s32;
+        std::memcpy(&s32, b, 4);
+        x = s32;
+      } else {
+        uint32_t u32;
+        std::memcpy(&u32, b, 4);
+        x = u32;
+      }
     } else {
-      if (is_signed) { int64_t s64; std::memcpy(&s64, b, 8); x = static_cast<double>(s64); } else { uint64_t u64; std::memcpy(&u64, b, 8); x = static_cast<double>(u64); }
+      if (is_signed) {
+        int64_t s64;
+        std::memcpy(&s64, b, 8);
+        x = static_cast<double>(s64);
+      } else {
+        uint64_t u64;
+        std::memcpy(&u64, b, 8);
+        x = static_cast<double>(u64);
+      }
     }
     (*out)[i] = static_cast<float>(x);
   }
@@ -648,7 +703,8 @@ std::string data_file_beside(const std::string& path, const std::string& field, 
     throw InputError(path + ": " + field, "expected one data file name, got '" + io::printable_text(name) + "'");
   const fs::path p = fs::path(name).is_absolute() ? fs::path(name) : fs::path(path).parent_path() / name;
   std::error_code ec;
-  if (!fs::is_regular_file(p, ec)) throw InputError(path + ": " + field, "data file '" + io::printable_text(name) + "' not found");
+  if (!fs::is_regular_file(p, ec))
+    throw InputError(path + ": " + field, "data file '" + io::printable_text(name) + "' not found");
   return p.string();
 }
 
@@ -680,17 +736,27 @@ Volume read_nrrd(const std::string& path) {
   int bytes = 0;
   char kind = 'i';
   bool is_signed = true;
-  if (type == "short" || type == "int16" || type == "int16_t" || type == "signed short") bytes = 2;
-  else if (type == "ushort" || type == "unsigned short" || type == "uint16" || type == "uint16_t") bytes = 2, is_signed = false;
-  else if (type == "uchar" || type == "unsigned char" || type == "uint8" || type == "uint8_t") bytes = 1, is_signed = false;
-  else if (type == "char" || type == "signed char" || type == "int8" || type == "int8_t") bytes = 1;
-  else if (type == "int" || type == "int32" || type == "int32_t" || type == "signed int") bytes = 4;
-  else if (type == "uint" || type == "unsigned int" || type == "uint32" || type == "uint32_t") bytes = 4, is_signed = false;
-  else if (type == "float") bytes = 4, kind = 'f';
-  else if (type == "double") bytes = 8, kind = 'f';
-  else throw InputError(path + ": type", "unsupported NRRD type '" + io::printable_text(type) + "'");
+  if (type == "short" || type == "int16" || type == "int16_t" || type == "signed short")
+    bytes = 2;
+  else if (type == "ushort" || type == "unsigned short" || type == "uint16" || type == "uint16_t")
+    bytes = 2, is_signed = false;
+  else if (type == "uchar" || type == "unsigned char" || type == "uint8" || type == "uint8_t")
+    bytes = 1, is_signed = false;
+  else if (type == "char" || type == "signed char" || type == "int8" || type == "int8_t")
+    bytes = 1;
+  else if (type == "int" || type == "int32" || type == "int32_t" || type == "signed int")
+    bytes = 4;
+  else if (type == "uint" || type == "unsigned int" || type == "uint32" || type == "uint32_t")
+    bytes = 4, is_signed = false;
+  else if (type == "float")
+    bytes = 4, kind = 'f';
+  else if (type == "double")
+    bytes = 8, kind = 'f';
+  else
+    throw InputError(path + ": type", "unsupported NRRD type '" + io::printable_text(type) + "'");
   if (encoding != "raw" && encoding != "gzip" && encoding != "gz")
-    throw InputError(path + ": encoding", "unsupported NRRD encoding '" + io::printable_text(encoding) + "' (expected raw or gzip)");
+    throw InputError(path + ": encoding",
+                     "unsupported NRRD encoding '" + io::printable_text(encoding) + "' (expected raw or gzip)");
   // Data: after the blank line that ends the header, or in the detached `data file`.
   std::string file = path;
   size_t offset = th.data_offset;
@@ -748,8 +814,13 @@ Volume read_metaimage(const std::string& path) {
   if (kv.count("elementnumberofchannels") &&
       numbers(path, "ElementNumberOfChannels", kv.at("elementnumberofchannels"), 1)[0] != 1)
     throw InputError(path + ": ElementNumberOfChannels", "expected 1 (a scalar volume)");
-  struct Type { const char* name; int bytes; char kind; bool is_signed; };
-  static const Type kTypes[] = {{"met_uchar", 1, 'i', false}, {"met_char", 1, 'i', true},
+  struct Type {
+    const char* name;
+    int bytes;
+    char kind;
+    bool is_signed;
+  };
+  static const Type kTypes[] = {{"met_uchar", 1, 'i', false},  {"met_char", 1, 'i', true},
                                 {"met_ushort", 2, 'i', false}, {"met_short", 2, 'i', true},
                                 {"met_uint", 4, 'i', false},   {"met_int", 4, 'i', true},
                                 {"met_float", 4, 'f', true},   {"met_double", 8, 'f', true}};
@@ -839,7 +910,9 @@ void check_dicom_lengths(const fs::path& f) {
   // file that ends there).
   if (pos == 132 && (d.size() < 136 || d.compare(132, 2, std::string("\x02\x00", 2)) != 0))
     throw InputError(where, "DICOM file: no file meta information (group 0002) after the 'DICM' prefix at byte 128");
-  auto u16 = [&](size_t o) { return static_cast<uint32_t>(static_cast<unsigned char>(d[o]) | (static_cast<unsigned char>(d[o + 1]) << 8)); };
+  auto u16 = [&](size_t o) {
+    return static_cast<uint32_t>(static_cast<unsigned char>(d[o]) | (static_cast<unsigned char>(d[o + 1]) << 8));
+  };
   auto u32 = [&](size_t o) { return u16(o) | (u16(o + 2) << 16); };
   bool explicit_vr = pos == 132;  // group 0002 is always explicit VR little endian
   bool meta_done = pos != 132;
@@ -857,16 +930,22 @@ void check_dicom_lengths(const fs::path& f) {
     if (!meta_done && group != 0x0002) {
       meta_done = true;
       const std::string ts = syntax.substr(0, syntax.find_last_not_of(std::string("\0 ", 2)) + 1);
-      if (ts == "1.2.840.10008.1.2") explicit_vr = false;
+      if (ts == "1.2.840.10008.1.2")
+        explicit_vr = false;
       else if (ts == "1.2.840.10008.1.2.2" || ts == "1.2.840.10008.1.2.1.99")
-        throw InputError(where, "unsupported DICOM transfer syntax " + io::printable_text(ts) + " (big endian or deflated)");
+        throw InputError(where,
+                         "unsupported DICOM transfer syntax " + io::printable_text(ts) + " (big endian or deflated)");
     }
     if (group == 0xFFFE) {  // item, item delimiter, sequence delimiter: 4-byte length, no VR
       const uint32_t len = u32(pos + 4);
       pos += 8;
       if (elem == 0xE000) {
-        if (len == 0xFFFFFFFFu) { ++depth; continue; }
-        if (len > d.size() - pos) throw InputError(where, "DICOM item length " + std::to_string(len) + " runs past the end of the file");
+        if (len == 0xFFFFFFFFu) {
+          ++depth;
+          continue;
+        }
+        if (len > d.size() - pos)
+          throw InputError(where, "DICOM item length " + std::to_string(len) + " runs past the end of the file");
         // A defined-length item is walked as elements too (its content is data elements or,
         // in encapsulated pixel data, a fragment, which we skip).
         pos += len;
@@ -887,7 +966,8 @@ void check_dicom_lengths(const fs::path& f) {
     const bool ev = explicit_vr || group == 0x0002;
     if (ev) {
       const std::string vr = d.substr(pos + 4, 2);
-      static const std::string kVrs = "AE AS AT CS DA DS DT FL FD IS LO LT OB OD OF OL OV OW PN SH SL SQ SS ST SV TM UC UI UL UN UR US UT UV";
+      static const std::string kVrs =
+          "AE AS AT CS DA DS DT FL FD IS LO LT OB OD OF OL OV OW PN SH SL SQ SS ST SV TM UC UI UL UN UR US UT UV";
       if (vr.size() != 2 || !std::isupper(static_cast<unsigned char>(vr[0])) ||
           !std::isupper(static_cast<unsigned char>(vr[1])) || kVrs.find(vr) == std::string::npos)
         throw InputError(where, "bad DICOM value representation '" + io::printable_text(vr) + "' at byte " +
@@ -896,8 +976,8 @@ void check_dicom_lengths(const fs::path& f) {
       if (group == 0x7FE0 && elem == 0x0010 && vr != "OB" && vr != "OW")
         throw InputError(where, "DICOM Pixel Data (7FE0,0010): expected VR OB or OW, got '" + io::printable_text(vr) +
                                     "' at byte " + std::to_string(pos + 4));
-      if (vr == "OB" || vr == "OW" || vr == "OF" || vr == "OD" || vr == "OL" || vr == "OV" || vr == "SQ" || vr == "UC" ||
-          vr == "UN" || vr == "UR" || vr == "UT" || vr == "SV" || vr == "UV") {
+      if (vr == "OB" || vr == "OW" || vr == "OF" || vr == "OD" || vr == "OL" || vr == "OV" || vr == "SQ" ||
+          vr == "UC" || vr == "UN" || vr == "UR" || vr == "UT" || vr == "SV" || vr == "UV") {
         if (pos + 12 > d.size()) throw InputError(where, "truncated DICOM data element at byte " + std::to_string(pos));
         len = u32(pos + 8);
         pos += 12;
@@ -928,14 +1008,17 @@ void check_dicom_lengths(const fs::path& f) {
                                   std::to_string(len) + " runs past the end of the file");
     if (group == 0x0002 && elem == 0x0010) syntax = d.substr(pos, len);
     // The image attributes GDCM reads with a fixed VR and value count (it asserts otherwise).
-    struct Known { uint32_t group, elem; const char* vr; int count; };
-    static const Known kKnown[] = {{0x0028, 0x0002, "US", 1}, {0x0028, 0x0010, "US", 1}, {0x0028, 0x0011, "US", 1},
-                                   {0x0028, 0x0100, "US", 1}, {0x0028, 0x0101, "US", 1}, {0x0028, 0x0102, "US", 1},
-                                   {0x0028, 0x0103, "US", 1}, {0x0028, 0x0030, "DS", 2}, {0x0028, 0x1052, "DS", 1},
-                                   {0x0028, 0x1053, "DS", 1}, {0x0020, 0x0032, "DS", 3}, {0x0020, 0x0037, "DS", 6},
-                                   {0x0018, 0x0050, "DS", 1}, {0x0018, 0x0088, "DS", 1}, {0x0028, 0x0008, "IS", 1},
-                                   {0x0028, 0x0006, "US", 1}, {0x0028, 0x0034, "IS", 2},
-                                   {0x0028, 0x0009, "AT", 0}};  // FrameIncrementPointer: tags, any count
+    struct Known {
+      uint32_t group, elem;
+      const char* vr;
+      int count;
+    };
+    static const Known kKnown[] = {
+        {0x0028, 0x0002, "US", 1}, {0x0028, 0x0010, "US", 1}, {0x0028, 0x0011, "US", 1}, {0x0028, 0x0100, "US", 1},
+        {0x0028, 0x0101, "US", 1}, {0x0028, 0x0102, "US", 1}, {0x0028, 0x0103, "US", 1}, {0x0028, 0x0030, "DS", 2},
+        {0x0028, 0x1052, "DS", 1}, {0x0028, 0x1053, "DS", 1}, {0x0020, 0x0032, "DS", 3}, {0x0020, 0x0037, "DS", 6},
+        {0x0018, 0x0050, "DS", 1}, {0x0018, 0x0088, "DS", 1}, {0x0028, 0x0008, "IS", 1}, {0x0028, 0x0006, "US", 1},
+        {0x0028, 0x0034, "IS", 2}, {0x0028, 0x0009, "AT", 0}};  // FrameIncrementPointer: tags, any count
     if (depth == 0)
       for (const Known& k : kKnown) {
         if (k.group != group || k.elem != elem || len == 0) continue;  // empty: absent
@@ -972,7 +1055,8 @@ void check_dicom_lengths(const fs::path& f) {
               throw InputError(where, name + ": expected finite numbers, got '" + io::printable_text(value) + "'");
             // GDCM asserts (ImageHelper::GetRescaleInterceptSlopeValue) on a zero slope.
             if (group == 0x0028 && elem == 0x1053 && x == 0.0)
-              throw InputError(where, name + " RescaleSlope: expected a non-zero number, got '" + io::printable_text(value) + "'");
+              throw InputError(
+                  where, name + " RescaleSlope: expected a non-zero number, got '" + io::printable_text(value) + "'");
           }
         }
       }
@@ -982,8 +1066,11 @@ void check_dicom_lengths(const fs::path& f) {
       std::string pi = d.substr(pos, len);
       pi = pi.substr(0, pi.find_last_not_of(std::string("\0 ", 2)) + 1);
       if (pi != "MONOCHROME1" && pi != "MONOCHROME2")
-        throw InputError(where, "DICOM Photometric Interpretation (0028,0004): expected MONOCHROME1 or MONOCHROME2 (a greyscale CT "
-                                "slice), got '" + io::printable_text(pi) + "'");
+        throw InputError(
+            where,
+            "DICOM Photometric Interpretation (0028,0004): expected MONOCHROME1 or MONOCHROME2 (a greyscale CT "
+            "slice), got '" +
+                io::printable_text(pi) + "'");
     }
     // GDCM asserts (PixmapReader::ReadImageInternal) on a retired Recognition Code that is not
     // an ACR-NEMA one.
@@ -1001,15 +1088,17 @@ void check_dicom_lengths(const fs::path& f) {
   // DICOM has RescaleIntercept and RescaleSlope together; with the intercept alone GDCM took a zero
   // slope and asserted (ImageHelper::GetRescaleInterceptSlopeValue).
   if (saw_intercept != saw_slope)
-    throw InputError(where, std::string("DICOM ") + (saw_intercept ? "RescaleIntercept (0028,1052) without RescaleSlope (0028,1053)"
-                                                                   : "RescaleSlope (0028,1053) without RescaleIntercept (0028,1052)") +
+    throw InputError(where, std::string("DICOM ") +
+                                (saw_intercept ? "RescaleIntercept (0028,1052) without RescaleSlope (0028,1053)"
+                                               : "RescaleSlope (0028,1053) without RescaleIntercept (0028,1052)") +
                                 ": expected both or neither");
   // GDCM's raw codec masks unused high bits only in 16-bit samples; on 8 or 32 bits with fewer
   // stored it asserts (ImageCodec::DecodeByStreams: BitsAllocated == BitsStored).
   if (bits_allocated > 0 && bits_stored > 0 &&
       (bits_stored > bits_allocated || (bits_allocated != 16 && bits_stored != bits_allocated)))
-    throw InputError(where, "DICOM BitsStored (0028,0101) " + std::to_string(bits_stored) + " with BitsAllocated (0028,0100) " +
-                                std::to_string(bits_allocated) + ": expected BitsStored <= 16 with 16 bits allocated, else equal");
+    throw InputError(where, "DICOM BitsStored (0028,0101) " + std::to_string(bits_stored) +
+                                " with BitsAllocated (0028,0100) " + std::to_string(bits_allocated) +
+                                ": expected BitsStored <= 16 with 16 bits allocated, else equal");
 }
 
 // Decodes one file with GDCM, in this process. Throws InputError; returns false for a DICOMDIR.
@@ -1083,14 +1172,29 @@ bool decode_dicom_slice(const fs::path& f, DicomSlice* s) {
     }
   };
   switch (pf.GetScalarType()) {
-    case gdcm::PixelFormat::UINT8: fill(uint8_t{}); break;
-    case gdcm::PixelFormat::INT8: fill(int8_t{}); break;
-    case gdcm::PixelFormat::UINT16: fill(uint16_t{}); break;
-    case gdcm::PixelFormat::INT16: fill(int16_t{}); break;
-    case gdcm::PixelFormat::UINT32: fill(uint32_t{}); break;
-    case gdcm::PixelFormat::INT32: fill(int32_t{}); break;
-    case gdcm::PixelFormat::FLOAT32: fill(float{}); break;
-    default: throw InputError(f.string(), "unsupported DICOM pixel type");
+    case gdcm::PixelFormat::UINT8:
+      fill(uint8_t{});
+      break;
+    case gdcm::PixelFormat::INT8:
+      fill(int8_t{});
+      break;
+    case gdcm::PixelFormat::UINT16:
+      fill(uint16_t{});
+      break;
+    case gdcm::PixelFormat::INT16:
+      fill(int16_t{});
+      break;
+    case gdcm::PixelFormat::UINT32:
+      fill(uint32_t{});
+      break;
+    case gdcm::PixelFormat::INT32:
+      fill(int32_t{});
+      break;
+    case gdcm::PixelFormat::FLOAT32:
+      fill(float{});
+      break;
+    default:
+      throw InputError(f.string(), "unsupported DICOM pixel type");
   }
   return true;
 }
@@ -1171,8 +1275,8 @@ bool read_dicom_slice(const fs::path& f, DicomSlice* s) {
   ::close(fds[1]);
   int32_t status = -1;
   uint64_t len = 0;
-  bool got = read_all(fds[0], &status, sizeof status) && read_all(fds[0], &len, sizeof len) &&
-             len <= (uint64_t{1} << 30);
+  bool got =
+      read_all(fds[0], &status, sizeof status) && read_all(fds[0], &len, sizeof len) && len <= (uint64_t{1} << 30);
   std::string msg;
   if (got && status == 1) {
     msg.resize(len);
@@ -1187,8 +1291,7 @@ bool read_dicom_slice(const fs::path& f, DicomSlice* s) {
   }
   ::close(fds[0]);
   int wstatus = 0;
-  while (::waitpid(pid, &wstatus, 0) < 0 && errno == EINTR) {
-  }
+  while (::waitpid(pid, &wstatus, 0) < 0 && errno == EINTR) {}
   if (!got || !WIFEXITED(wstatus) || WEXITSTATUS(wstatus) != 0) {
     const std::string how = WIFSIGNALED(wstatus) ? "signal " + std::to_string(WTERMSIG(wstatus))
                                                  : "exit " + std::to_string(WEXITSTATUS(wstatus));
@@ -1228,8 +1331,8 @@ Volume read_dicom_series(const std::string& path) {
       pixel_spacing = s.spacing;
     } else if (s.nx != nx || s.ny != ny) {
       throw InputError(f.string(), "slice size " + std::to_string(s.nx) + "x" + std::to_string(s.ny) +
-                                       " differs from the series (" + std::to_string(nx) + "x" +
-                                       std::to_string(ny) + ")");
+                                       " differs from the series (" + std::to_string(nx) + "x" + std::to_string(ny) +
+                                       ")");
     }
     gdcm_log.str("");
     slices.push_back(std::move(s));
@@ -1354,7 +1457,8 @@ Volume checked(Volume v) {
       throw InputError(path, std::string("voxel spacing along ") + "ijk"[c] + " is " + std::to_string(len) +
                                  " mm, expected 0.001..1000 mm");
   }
-  if (!(v.voxel_volume_mm3() > 1e-12)) throw InputError(path, "the voxel axes are not independent (singular transform)");
+  if (!(v.voxel_volume_mm3() > 1e-12))
+    throw InputError(path, "the voxel axes are not independent (singular transform)");
   const auto b = v.world_bounds();
   for (double x : b)
     if (!(std::abs(x) <= kMaxWorldMm))
@@ -1373,8 +1477,9 @@ Volume read_volume(const std::string& path) {
   if (ends_with(l, ".nrrd") || ends_with(l, ".nhdr")) return checked(read_nrrd(path));
   if (ends_with(l, ".mha") || ends_with(l, ".mhd")) return checked(read_metaimage(path));
   if (ends_with(l, ".dcm") || looks_like_dicom(path)) return checked(read_dicom_series(path));
-  throw InputError(path, "unknown volume format (expected .nii, .nii.gz, .nrrd, .nhdr, .mha, "
-                         ".mhd, or a DICOM file/folder)");
+  throw InputError(path,
+                   "unknown volume format (expected .nii, .nii.gz, .nrrd, .nhdr, .mha, "
+                   ".mhd, or a DICOM file/folder)");
 }
 
 void write_label_nifti(const Volume& labels, const std::string& path) {
@@ -1390,22 +1495,28 @@ void write_label_nifti(const Volume& labels, const std::string& path) {
   auto put_f32 = [&](int off, float x) { std::memcpy(h + off, &x, 4); };
   put_i32(0, 348);
   h[39] = 0;
-  const int16_t dim[8] = {3, static_cast<int16_t>(labels.dims[0]), static_cast<int16_t>(labels.dims[1]),
-                          static_cast<int16_t>(labels.dims[2]), 1, 1, 1, 1};
+  const int16_t dim[8] = {3,
+                          static_cast<int16_t>(labels.dims[0]),
+                          static_cast<int16_t>(labels.dims[1]),
+                          static_cast<int16_t>(labels.dims[2]),
+                          1,
+                          1,
+                          1,
+                          1};
   std::memcpy(h + 40, dim, 16);
-  put_i16(70, u8 ? 2 : 4);    // DT_UINT8 or DT_INT16
-  put_i16(72, u8 ? 8 : 16);   // bitpix
+  put_i16(70, u8 ? 2 : 4);   // DT_UINT8 or DT_INT16
+  put_i16(72, u8 ? 8 : 16);  // bitpix
   const auto& a = labels.ijk_to_ras;
   float pixdim[8] = {1, 1, 1, 1, 1, 1, 1, 1};
   for (int c = 0; c < 3; ++c)
     pixdim[c + 1] = static_cast<float>(std::sqrt(a[c] * a[c] + a[4 + c] * a[4 + c] + a[8 + c] * a[8 + c]));
   std::memcpy(h + 76, pixdim, 32);
-  put_f32(108, 352.0f);       // vox_offset
-  put_f32(112, 1.0f);         // scl_slope
-  h[123] = 2;                 // xyzt_units: mm
+  put_f32(108, 352.0f);  // vox_offset
+  put_f32(112, 1.0f);    // scl_slope
+  h[123] = 2;            // xyzt_units: mm
   std::snprintf(reinterpret_cast<char*>(h + 148), 80, "softatlas segment");
-  put_i16(252, 0);            // qform_code: unset; the sform carries the full affine
-  put_i16(254, 1);            // sform_code: scanner anatomical
+  put_i16(252, 0);  // qform_code: unset; the sform carries the full affine
+  put_i16(254, 1);  // sform_code: scanner anatomical
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 4; ++c) put_f32(280 + r * 16 + c * 4, static_cast<float>(a[r * 4 + c]));
   std::memcpy(h + 344, "n+1\0", 4);

@@ -26,9 +26,12 @@ void compensation_pass(const Model& m, const OrganRange& r, State& s, Work& w, d
       const double l = std::sqrt(dx * dx + dy * dy + dz * dz);
       const double l0 = m.spring_length0[q];
       double target;
-      if (l > hi * l0) target = hi * l0;
-      else if (l < lo * l0) target = lo * l0;
-      else continue;
+      if (l > hi * l0)
+        target = hi * l0;
+      else if (l < lo * l0)
+        target = lo * l0;
+      else
+        continue;
       if (!(l > kTiny)) continue;
       const double corr = (l - target) / (l * (wa + wb));
       s.x[a] += wa * corr * dx, s.y[a] += wa * corr * dy, s.z[a] += wa * corr * dz;

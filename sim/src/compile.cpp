@@ -61,19 +61,17 @@ void check_material(const SceneDesc& scene, size_t o) {
           "expected tau_s < 1 (negative = off), got " + num(m.tau_s));
   require(std::isfinite(m.tau_c) && m.tau_c < 1.0, where("tau_c"),
           "expected tau_c < 1 (negative = off), got " + num(m.tau_c));
-  require(m.compensation_iterations >= 0 && m.compensation_iterations <= 1000,
-          where("compensation_iterations"), "expected 0..1000");
+  require(m.compensation_iterations >= 0 && m.compensation_iterations <= 1000, where("compensation_iterations"),
+          "expected 0..1000");
   nonneg(m.flexion_stiffness, "flexion_stiffness");
-  require(std::isfinite(m.volume_stiffness) && m.volume_stiffness >= 0 &&
-              m.volume_stiffness <= 1.0,
+  require(std::isfinite(m.volume_stiffness) && m.volume_stiffness >= 0 && m.volume_stiffness <= 1.0,
           where("volume_stiffness"), "expected 0..1, got " + num(m.volume_stiffness));
 }
 
 void check_mesh(const SceneDesc& scene, size_t o) {
   const OrganDesc& org = scene.organs[o];
   require(!org.name.empty(), "organ " + std::to_string(o), "organ without a name");
-  require(org.vertices.size() % 3 == 0, organ_field(scene, o, "vertices"),
-          "expected 3 coordinates per vertex");
+  require(org.vertices.size() % 3 == 0, organ_field(scene, o, "vertices"), "expected 3 coordinates per vertex");
   require(org.faces.size() % 3 == 0, organ_field(scene, o, "faces"),
           "expected 3 vertex indices per face (triangles only)");
   require(!org.faces.empty(), organ_field(scene, o, "faces"), "empty mesh: no faces");
@@ -85,8 +83,8 @@ void check_mesh(const SceneDesc& scene, size_t o) {
     for (int c = 0; c < 3; ++c) {
       const int32_t v = org.faces[3 * f + c];
       require(v >= 0 && static_cast<size_t>(v) < nv, organ_field(scene, o, "faces"),
-              "face " + std::to_string(f) + " has vertex index " + std::to_string(v) +
-                  " outside 0.." + std::to_string(nv - 1));
+              "face " + std::to_string(f) + " has vertex index " + std::to_string(v) + " outside 0.." +
+                  std::to_string(nv - 1));
     }
     const int32_t a = org.faces[3 * f], b = org.faces[3 * f + 1], c = org.faces[3 * f + 2];
     require(a != b && b != c && a != c, organ_field(scene, o, "faces"),
@@ -101,8 +99,7 @@ void check_mesh(const SceneDesc& scene, size_t o) {
 // from a pseudo-peripheral vertex of each component: neighbouring vertices get nearby indices,
 // so the spring loop's scattered reads and writes stay within a narrow band of memory whatever
 // order the file (or the importer) gave. Measured: docs/performance.md.
-std::vector<int32_t> locality_order(size_t nv, const std::vector<int32_t>& faces,
-                                    const std::vector<int32_t>& used) {
+std::vector<int32_t> locality_order(size_t nv, const std::vector<int32_t>& faces, const std::vector<int32_t>& used) {
   std::vector<std::vector<int32_t>> adj(nv);
   for (size_t f = 0; f + 2 < faces.size(); f += 3)
     for (int e = 0; e < 3; ++e) {
@@ -124,18 +121,17 @@ std::vector<int32_t> locality_order(size_t nv, const std::vector<int32_t>& faces
       std::vector<int32_t> next;
       for (int32_t n : adj[v])
         if (level[n] < 0) level[n] = level[v] + 1, next.push_back(n);
-      std::sort(next.begin(), next.end(),
-                [&](int32_t a, int32_t b) { return adj[a].size() < adj[b].size(); });
+      std::sort(next.begin(), next.end(), [&](int32_t a, int32_t b) { return adj[a].size() < adj[b].size(); });
       out.insert(out.end(), next.begin(), next.end());
     }
   };
   std::vector<int32_t> comp;
   for (size_t s = 0; s < nv; ++s) {
     if (used[s] != 0 || level[s] >= 0) continue;
-    bfs(static_cast<int32_t>(s), comp);       // find the far end of the component
+    bfs(static_cast<int32_t>(s), comp);  // find the far end of the component
     const int32_t far = comp.back();
     for (int32_t v : comp) level[v] = -1;
-    bfs(far, comp);                           // and order from there
+    bfs(far, comp);  // and order from there
     order.insert(order.end(), comp.begin(), comp.end());
   }
   return order;
@@ -176,28 +172,37 @@ double estimate_stable_dt(const Model& m, const std::vector<double>& k_eff) {
 
 const char* to_string(ModelKind kind) {
   switch (kind) {
-    case ModelKind::tmsm: return "tmsm";
-    case ModelKind::cmsm: return "cmsm";
-    case ModelKind::nmsm: return "nmsm";
-    case ModelKind::flexion: return "flexion";
-    case ModelKind::solid: return "solid";
-    case ModelKind::rigid: return "rigid";
+    case ModelKind::tmsm:
+      return "tmsm";
+    case ModelKind::cmsm:
+      return "cmsm";
+    case ModelKind::nmsm:
+      return "nmsm";
+    case ModelKind::flexion:
+      return "flexion";
+    case ModelKind::solid:
+      return "solid";
+    case ModelKind::rigid:
+      return "rigid";
   }
   return "?";
 }
 
 bool parse_model_kind(const std::string& text, ModelKind& out) {
-  for (ModelKind k : {ModelKind::tmsm, ModelKind::cmsm, ModelKind::nmsm, ModelKind::flexion, ModelKind::solid,
-                      ModelKind::rigid})
+  for (ModelKind k :
+       {ModelKind::tmsm, ModelKind::cmsm, ModelKind::nmsm, ModelKind::flexion, ModelKind::solid, ModelKind::rigid})
     if (text == to_string(k)) return out = k, true;
   return false;
 }
 
 const char* to_string(Integrator integrator) {
   switch (integrator) {
-    case Integrator::verlet: return "verlet";
-    case Integrator::semi_implicit: return "semi-implicit";
-    case Integrator::implicit: return "implicit";
+    case Integrator::verlet:
+      return "verlet";
+    case Integrator::semi_implicit:
+      return "semi-implicit";
+    case Integrator::implicit:
+      return "implicit";
   }
   return "?";
 }
@@ -215,34 +220,28 @@ Model compile(const SceneDesc& scene) {
           "expected a time step in (0, 1] s (0: the models' own), got " + num(scene.dt_s));
   require(scene.cg_iterations >= 1 && scene.cg_iterations <= 100000, "scene: cg_iterations",
           "expected 1..100000, got " + std::to_string(scene.cg_iterations));
-  require(std::isfinite(scene.cg_tolerance) && scene.cg_tolerance >= 0, "scene: cg_tolerance",
-          "expected a value >= 0");
-  require(std::isfinite(scene.max_tool_force_N) && scene.max_tool_force_N > 0,
-          "scene: max_tool_force_N", "expected a positive force, got " + num(scene.max_tool_force_N));
-  require(scene.max_substeps >= 1 && scene.max_substeps <= 100000, "scene: max_substeps",
-          "expected 1..100000");
-  for (double g : scene.gravity_m_s2)
-    require(std::isfinite(g), "scene: gravity_m_s2", "expected finite components");
+  require(std::isfinite(scene.cg_tolerance) && scene.cg_tolerance >= 0, "scene: cg_tolerance", "expected a value >= 0");
+  require(std::isfinite(scene.max_tool_force_N) && scene.max_tool_force_N > 0, "scene: max_tool_force_N",
+          "expected a positive force, got " + num(scene.max_tool_force_N));
+  require(scene.max_substeps >= 1 && scene.max_substeps <= 100000, "scene: max_substeps", "expected 1..100000");
+  for (double g : scene.gravity_m_s2) require(std::isfinite(g), "scene: gravity_m_s2", "expected finite components");
   require(!scene.organs.empty(), "scene: organs", "expected at least one organ");
   for (size_t o = 0; o < scene.organs.size(); ++o) {
     check_mesh(scene, o);
     check_material(scene, o);
     for (size_t p = 0; p < o; ++p)
-      require(scene.organs[p].name != scene.organs[o].name, organ_field(scene, o, "name"),
-              "duplicate organ name");
+      require(scene.organs[p].name != scene.organs[o].name, organ_field(scene, o, "name"), "duplicate organ name");
   }
   const int32_t norg_in = static_cast<int32_t>(scene.organs.size());
   for (size_t c = 0; c < scene.connections.size(); ++c) {
     const ConnectionDesc& cd = scene.connections[c];
     const std::string where = "connection " + std::to_string(c);
-    require(cd.organ_a >= 0 && cd.organ_a < norg_in && cd.organ_b >= 0 && cd.organ_b < norg_in,
-            where, "organ index out of range");
-    require(cd.vertex_a >= 0 &&
-                static_cast<size_t>(cd.vertex_a) < scene.organs[cd.organ_a].vertices.size() / 3,
-            where, "vertex_a out of range for organ '" + scene.organs[cd.organ_a].name + "'");
-    require(cd.vertex_b >= 0 &&
-                static_cast<size_t>(cd.vertex_b) < scene.organs[cd.organ_b].vertices.size() / 3,
-            where, "vertex_b out of range for organ '" + scene.organs[cd.organ_b].name + "'");
+    require(cd.organ_a >= 0 && cd.organ_a < norg_in && cd.organ_b >= 0 && cd.organ_b < norg_in, where,
+            "organ index out of range");
+    require(cd.vertex_a >= 0 && static_cast<size_t>(cd.vertex_a) < scene.organs[cd.organ_a].vertices.size() / 3, where,
+            "vertex_a out of range for organ '" + scene.organs[cd.organ_a].name + "'");
+    require(cd.vertex_b >= 0 && static_cast<size_t>(cd.vertex_b) < scene.organs[cd.organ_b].vertices.size() / 3, where,
+            "vertex_b out of range for organ '" + scene.organs[cd.organ_b].name + "'");
     require(std::isfinite(cd.rest_length_m) && cd.rest_length_m >= 0, where,
             "expected a rest length >= 0, got " + num(cd.rest_length_m));
     require(std::isfinite(cd.stiffness) && cd.stiffness >= 0, where,
@@ -252,8 +251,7 @@ Model compile(const SceneDesc& scene) {
   Model m;
   m.integrator = scene.integrator;
   m.dt_s = scene.dt_s > 0 ? scene.dt_s : recommended_dt_s(scene);  // timestep.cpp
-  m.gravity = scene.gravity && (scene.gravity_m_s2[0] != 0 || scene.gravity_m_s2[1] != 0 ||
-                                scene.gravity_m_s2[2] != 0);
+  m.gravity = scene.gravity && (scene.gravity_m_s2[0] != 0 || scene.gravity_m_s2[1] != 0 || scene.gravity_m_s2[2] != 0);
   m.gravity_m_s2 = scene.gravity_m_s2;
   m.cg_iterations = scene.cg_iterations;
   m.cg_tolerance = scene.cg_tolerance;
@@ -264,7 +262,8 @@ Model compile(const SceneDesc& scene) {
   m.sleep_speed_m_s = scene.sleep_speed_m_s;
   m.sleep_steps = scene.sleep_steps;
   require(scene.threads >= 1 && scene.threads <= 64, "scene: threads", "expected 1..64");
-  if (scene.threads > 1) m.plan.push_back("explicit steps: organs spread over " + std::to_string(scene.threads) + " threads");
+  if (scene.threads > 1)
+    m.plan.push_back("explicit steps: organs spread over " + std::to_string(scene.threads) + " threads");
   m.threads = scene.threads;
 
   // ---- which organs: shown ones and everything connected to them (transitively) ----
@@ -281,8 +280,7 @@ Model compile(const SceneDesc& scene) {
   std::vector<int32_t> compiled_index(norg_in, -1);
   for (int32_t o = 0; o < norg_in; ++o) {
     if (!keep[o]) {
-      m.dropped.push_back("organ '" + scene.organs[o].name +
-                          "': not shown and not connected to a shown organ");
+      m.dropped.push_back("organ '" + scene.organs[o].name + "': not shown and not connected to a shown organ");
       continue;
     }
     if (!scene.organs[o].shown)
@@ -328,8 +326,7 @@ Model compile(const SceneDesc& scene) {
     }
     r.vert_end = m.nvert;
     if (static_cast<size_t>(r.vert_end - r.vert_begin) < nv_in)
-      m.plan.push_back("organ '" + od.name + "': " +
-                       std::to_string(nv_in - (r.vert_end - r.vert_begin)) +
+      m.plan.push_back("organ '" + od.name + "': " + std::to_string(nv_in - (r.vert_end - r.vert_begin)) +
                        " vertices used by no face are left out");
 
     r.face_begin = m.nface;
@@ -363,8 +360,7 @@ Model compile(const SceneDesc& scene) {
         total = mat.density_kg_m3 * volume;
         if (!(total > 0)) {  // open or flat surface: a shell of the 000 eq 9 thickness
           total = mat.density_kg_m3 * area * mat.thickness_m;
-          m.plan.push_back("organ '" + od.name +
-                           "': encloses no volume; mass from area x thickness x density");
+          m.plan.push_back("organ '" + od.name + "': encloses no volume; mass from area x thickness x density");
         }
       }
       require(total > 0, organ_field(scene, o, "faces"), "surface has zero area: cannot assign mass");
@@ -374,7 +370,12 @@ Model compile(const SceneDesc& scene) {
       if (!(surface_area(X, Y, Z, F, r.face_begin + f, r.face_begin + f + 1) > 0)) ++degenerate_faces;
 
     // springs = unique edges, sorted by (a, b); face area sum per edge (000 eq 9)
-    struct Edge { int32_t a, b; double area; int faces; int32_t wing[2]; };
+    struct Edge {
+      int32_t a, b;
+      double area;
+      int faces;
+      int32_t wing[2];
+    };
     std::vector<Edge> edges;
     edges.reserve(3 * nf);
     for (size_t f = 0; f < nf; ++f) {
@@ -403,8 +404,8 @@ Model compile(const SceneDesc& scene) {
     std::vector<double> lens(unique.size());
     for (size_t s = 0; s < unique.size(); ++s) {
       const int32_t a = unique[s].a, b = unique[s].b;
-      lens[s] = std::sqrt((X[b] - X[a]) * (X[b] - X[a]) + (Y[b] - Y[a]) * (Y[b] - Y[a]) +
-                          (Z[b] - Z[a]) * (Z[b] - Z[a]));
+      lens[s] =
+          std::sqrt((X[b] - X[a]) * (X[b] - X[a]) + (Y[b] - Y[a]) * (Y[b] - Y[a]) + (Z[b] - Z[a]) * (Z[b] - Z[a]));
     }
     std::vector<double> sorted_lens = lens;
     std::nth_element(sorted_lens.begin(), sorted_lens.begin() + sorted_lens.size() / 2, sorted_lens.end());
@@ -426,9 +427,10 @@ Model compile(const SceneDesc& scene) {
         k = lloyd_stiffness(mat.young_modulus_pa, mat.thickness_m, e.area, l);
       }
       const double ma = m.vert_mass[e.a], mb = m.vert_mass[e.b];
-      const double d = mat.damping >= 0        ? mat.damping
-                       : mat.damping_ratio >= 0 ? mat.damping_ratio * 2.0 * std::sqrt(k * ma * mb / std::max(ma + mb, 1e-300))
-                                                : mat.damping_scale * spring_damping(k, ma, mb);
+      const double d = mat.damping >= 0 ? mat.damping
+                       : mat.damping_ratio >= 0
+                           ? mat.damping_ratio * 2.0 * std::sqrt(k * ma * mb / std::max(ma + mb, 1e-300))
+                           : mat.damping_scale * spring_damping(k, ma, mb);
       m.spring_k.push_back(k);
       m.spring_d.push_back(d);
       r.damping = r.damping || d > 0;
@@ -448,13 +450,10 @@ Model compile(const SceneDesc& scene) {
     std::vector<double> hvert(m.nvert, 0.0);
     if (r.curvature) {
       const size_t nvo = r.vert_end - r.vert_begin;
-      std::vector<double> lx(m.nvert, 0.0), ly(m.nvert, 0.0), lz(m.nvert, 0.0), a2(m.nvert, 0.0),
-          kap(m.nvert, 0.0);
-      accumulate_cotan_laplacian(nf, F + 3 * r.face_begin, X, Y, Z, lx.data(), ly.data(),
-                                 lz.data(), a2.data());
-      mean_curvature_from_laplacian(nvo, lx.data() + r.vert_begin, ly.data() + r.vert_begin,
-                                    lz.data() + r.vert_begin, a2.data() + r.vert_begin,
-                                    kap.data() + r.vert_begin);
+      std::vector<double> lx(m.nvert, 0.0), ly(m.nvert, 0.0), lz(m.nvert, 0.0), a2(m.nvert, 0.0), kap(m.nvert, 0.0);
+      accumulate_cotan_laplacian(nf, F + 3 * r.face_begin, X, Y, Z, lx.data(), ly.data(), lz.data(), a2.data());
+      mean_curvature_from_laplacian(nvo, lx.data() + r.vert_begin, ly.data() + r.vert_begin, lz.data() + r.vert_begin,
+                                    a2.data() + r.vert_begin, kap.data() + r.vert_begin);
       const double coef = kernels::elastica_vertex_coef(r.elastica_p, r.elastica_b, r.curvature_unit_m);
       for (int32_t v = r.vert_begin; v < r.vert_end; ++v) hvert[v] = coef * kap[v];
     }
@@ -505,8 +504,8 @@ Model compile(const SceneDesc& scene) {
         if (e.faces != 2 || e.wing[0] < 0 || e.wing[1] < 0) continue;
         // faces (a, b, c) and (b, a, d): wing[0] is the face where a->b runs, wing[1] b->a
         const int32_t a = e.a, b = e.b, c = e.wing[0], d = e.wing[1];
-        const double pa[3] = {X[a], Y[a], Z[a]}, pb[3] = {X[b], Y[b], Z[b]},
-                     pc[3] = {X[c], Y[c], Z[c]}, pd[3] = {X[d], Y[d], Z[d]};
+        const double pa[3] = {X[a], Y[a], Z[a]}, pb[3] = {X[b], Y[b], Z[b]}, pc[3] = {X[c], Y[c], Z[c]},
+                     pd[3] = {X[d], Y[d], Z[d]};
         m.flex_a.push_back(a), m.flex_b.push_back(b), m.flex_c.push_back(c), m.flex_d.push_back(d);
         m.flex_rest_angle.push_back(dihedral_angle(pa, pb, pc, pd));
         m.flex_k.push_back(mat.flexion_stiffness);
@@ -535,16 +534,25 @@ Model compile(const SceneDesc& scene) {
   // ---- connections between kept organs ----
   int64_t dropped_conn = 0;
   for (const ConnectionDesc& cd : scene.connections) {
-    if (!keep[cd.organ_a] || !keep[cd.organ_b]) { ++dropped_conn; continue; }
+    if (!keep[cd.organ_a] || !keep[cd.organ_b]) {
+      ++dropped_conn;
+      continue;
+    }
     const int32_t a = local_to_global[cd.organ_a][cd.vertex_a];
     const int32_t b = local_to_global[cd.organ_b][cd.vertex_b];
-    require(a >= 0 && b >= 0, "connection " + scene.organs[cd.organ_a].name + ":" +
-                                  std::to_string(cd.vertex_a) + " - " +
-                                  scene.organs[cd.organ_b].name + ":" + std::to_string(cd.vertex_b),
+    require(a >= 0 && b >= 0,
+            "connection " + scene.organs[cd.organ_a].name + ":" + std::to_string(cd.vertex_a) + " - " +
+                scene.organs[cd.organ_b].name + ":" + std::to_string(cd.vertex_b),
             "connects a vertex used by no face");
-    if (cd.stiffness == 0) { ++dropped_conn; continue; }
+    if (cd.stiffness == 0) {
+      ++dropped_conn;
+      continue;
+    }
     if (scene.organs[cd.organ_a].material.model == ModelKind::rigid &&
-        scene.organs[cd.organ_b].material.model == ModelKind::rigid) { ++dropped_conn; continue; }
+        scene.organs[cd.organ_b].material.model == ModelKind::rigid) {
+      ++dropped_conn;
+      continue;
+    }
     m.conn_a.push_back(a), m.conn_b.push_back(b);
     m.conn_rest.push_back(cd.rest_length_m);
     m.conn_k.push_back(cd.stiffness);
@@ -554,8 +562,7 @@ Model compile(const SceneDesc& scene) {
       if (m.organs[m.vert_organ[v]].model == ModelKind::rigid) m.rigid_conn_verts.push_back(v);
   }
   std::sort(m.rigid_conn_verts.begin(), m.rigid_conn_verts.end());
-  m.rigid_conn_verts.erase(std::unique(m.rigid_conn_verts.begin(), m.rigid_conn_verts.end()),
-                           m.rigid_conn_verts.end());
+  m.rigid_conn_verts.erase(std::unique(m.rigid_conn_verts.begin(), m.rigid_conn_verts.end()), m.rigid_conn_verts.end());
   if (dropped_conn)
     m.dropped.push_back(std::to_string(dropped_conn) +
                         " connection springs: to organs left out, zero stiffness, or between two rigid organs");
@@ -615,8 +622,7 @@ Model compile(const SceneDesc& scene) {
   m.stable_dt_s = estimate_stable_dt(m, k_eff);
   m.effective_integrator = m.integrator;
   m.substeps = 1;
-  if (m.integrator != Integrator::implicit && m.guard && std::isfinite(m.stable_dt_s) &&
-      m.dt_s > 0.9 * m.stable_dt_s) {
+  if (m.integrator != Integrator::implicit && m.guard && std::isfinite(m.stable_dt_s) && m.dt_s > 0.9 * m.stable_dt_s) {
     const double need = std::ceil(m.dt_s / (0.9 * m.stable_dt_s));
     if (need <= m.max_substeps) {
       m.substeps = static_cast<int>(need);
@@ -625,7 +631,7 @@ Model compile(const SceneDesc& scene) {
     }
   }
 
-  compile_solids(scene, m);  // lattices of the solid organs (solid_step.cpp)
+  compile_solids(scene, m);           // lattices of the solid organs (solid_step.cpp)
   compile_contact(scene.contact, m);  // contact between organs (contact.cpp)
 
   // ---- the plan, in words ----
@@ -633,30 +639,28 @@ Model compile(const SceneDesc& scene) {
   auto line = [&](const std::string& s) { m.plan.push_back(s); };
   int64_t nfix = 0;
   for (double w : m.vert_inv_mass) nfix += (w == 0.0);
-  os << m.organs.size() << " organs, " << m.nvert << " vertices (" << nfix << " fixed), "
-     << m.nface << " faces, " << m.nspring << " springs, " << m.nconn << " connection springs, "
-     << m.nflex << " flexion springs";
+  os << m.organs.size() << " organs, " << m.nvert << " vertices (" << nfix << " fixed), " << m.nface << " faces, "
+     << m.nspring << " springs, " << m.nconn << " connection springs, " << m.nflex << " flexion springs";
   line(os.str());
   if (m.contact.on) {
     int64_t inside = 0;
     for (uint8_t f : m.contact.rest_inside) inside += f;
     line("contact between organs: vertices closer than their partners' boxes + " +
          std::to_string(static_cast<int>(std::lround(m.contact.depth_m * 1e3))) +
-         " mm projected out of their nearest face (hash grid, " + std::to_string(m.contact.table_size) +
-         " buckets); " + std::to_string(inside) + " vertices inside another organ at rest are exempt");
+         " mm projected out of their nearest face (hash grid, " + std::to_string(m.contact.table_size) + " buckets); " +
+         std::to_string(inside) + " vertices inside another organ at rest are exempt");
   } else if (scene.contact) {
     m.dropped.push_back("contact: fewer than two organs");
   }
   for (const OrganRange& r : m.organs) {
-    std::string s = "organ '" + r.name + "' [" + to_string(r.model) + "]: " +
-                    std::to_string(r.spring_end - r.spring_begin) + " springs";
+    std::string s = "organ '" + r.name + "' [" + to_string(r.model) +
+                    "]: " + std::to_string(r.spring_end - r.spring_begin) + " springs";
     if (r.elastica_frozen)
       s += ", conservative elastica: Hooke springs of stiffness k (a + b |kappa0 L|^p) at the rest "
-           "curvature (b = " + num(r.elastica_b) + ", p = " + std::to_string(r.elastica_p) +
-           "), no curvature pass";
+           "curvature (b = " +
+           num(r.elastica_b) + ", p = " + std::to_string(r.elastica_p) + "), no curvature pass";
     else if (r.model == ModelKind::nmsm)
-      s += r.curvature ? ", curvature pass (b = " + num(r.elastica_b) + ", p = " +
-                             std::to_string(r.elastica_p) + ")"
+      s += r.curvature ? ", curvature pass (b = " + num(r.elastica_b) + ", p = " + std::to_string(r.elastica_p) + ")"
                        : ", no curvature pass (b = 0: elastica springs reduce to Hooke)";
     s += r.damping ? ", spring damping" : ", no damping pass (d = 0)";
     if (r.compensation_iterations > 0)
@@ -667,15 +671,16 @@ Model compile(const SceneDesc& scene) {
     if (r.model == ModelKind::rigid)
       s = "organ '" + r.name + "' [rigid]: all " + std::to_string(r.vert_end - r.vert_begin) +
           " vertices fixed, no internal forces, never stepped (anchors connection springs)";
-    else if (!r.has_fixed) s += ", no fixed vertices";
+    else if (!r.has_fixed)
+      s += ", no fixed vertices";
     if (r.model == ModelKind::solid) s += ", " + solid_plan(m.solids[m.organ_solid[&r - m.organs.data()]]);
     line(s);
   }
   line(m.gravity ? "gravity on" : "no gravity pass (gravity off)");
   line(std::string("integrator ") + to_string(m.integrator) + ", dt = " + num(m.dt_s) + " s");
   if (m.integrator == Integrator::implicit)
-    line("implicit Euler: CG up to " + std::to_string(m.cg_iterations) +
-         " iterations, relative tolerance " + num(m.cg_tolerance));
+    line("implicit Euler: CG up to " + std::to_string(m.cg_iterations) + " iterations, relative tolerance " +
+         num(m.cg_tolerance));
   line("stable explicit dt estimate " + num(m.stable_dt_s) + " s (Gershgorin bound)");
   if (m.guard) {
     if (m.effective_integrator != m.integrator)
@@ -691,8 +696,7 @@ Model compile(const SceneDesc& scene) {
   if (capped_springs)
     line(std::to_string(capped_springs) +
          " near-zero-length springs: 000 eq 9 stiffness capped (length floor 1e-3 x median edge)");
-  if (degenerate_faces)
-    line(std::to_string(degenerate_faces) + " zero-area faces: no curvature or mass contribution");
+  if (degenerate_faces) line(std::to_string(degenerate_faces) + " zero-area faces: no curvature or mass contribution");
   if (m.allow_sleep) line("resting organs sleep until touched");
   return m;
 }

@@ -19,7 +19,8 @@ void constraint_passes(const Model& m, State& s, Work& w, double h) {
     if (r.compensation_iterations <= 0 && r.volume_stiffness <= 0) continue;
     if (tool && !any)
       for (int32_t v : t.verts)
-        before[0] += m.vert_mass[v] * s.x[v], before[1] += m.vert_mass[v] * s.y[v], before[2] += m.vert_mass[v] * s.z[v];
+        before[0] += m.vert_mass[v] * s.x[v], before[1] += m.vert_mass[v] * s.y[v],
+            before[2] += m.vert_mass[v] * s.z[v];
     any = true;
     if (r.compensation_iterations > 0) compensation_pass(m, r, s, w, h);
     if (r.volume_stiffness > 0) volume_pass(m, r, s, w, h);

@@ -11,8 +11,8 @@ namespace softatlas::sim {
 
 namespace {
 
-constexpr int kContactSweeps = 3;  // Gauss-Seidel sweeps over the step's contacts per round
-constexpr int kContactRounds = 3;  // rounds of sweeps and lattice transfer per step
+constexpr int kContactSweeps = 3;    // Gauss-Seidel sweeps over the step's contacts per round
+constexpr int kContactRounds = 3;    // rounds of sweeps and lattice transfer per step
 constexpr double kLetGoDepth = 2.0;  // detection radius in depths (deeper vertices are let go)
 // Two organs whose surfaces overlap deeper than this at rest get no contact between them: a vessel
 // inside the liver, a vein in its groove (contact between them inverted the vein, 21 mm residual
@@ -30,17 +30,22 @@ struct Positions {
 
 // Closest point of triangle abc to p as barycentric weights (Ericson, Real-Time Collision
 // Detection, 5.1.5).
-void closest_on_triangle(const double p[3], const double a[3], const double b[3], const double c[3],
-                         double w[3]) {
+void closest_on_triangle(const double p[3], const double a[3], const double b[3], const double c[3], double w[3]) {
   double ab[3], ac[3], ap[3];
   for (int k = 0; k < 3; ++k) ab[k] = b[k] - a[k], ac[k] = c[k] - a[k], ap[k] = p[k] - a[k];
   auto dot = [](const double* u, const double* v) { return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]; };
   const double d1 = dot(ab, ap), d2 = dot(ac, ap);
-  if (d1 <= 0 && d2 <= 0) { w[0] = 1, w[1] = w[2] = 0; return; }
+  if (d1 <= 0 && d2 <= 0) {
+    w[0] = 1, w[1] = w[2] = 0;
+    return;
+  }
   double bp[3], cp[3];
   for (int k = 0; k < 3; ++k) bp[k] = p[k] - b[k], cp[k] = p[k] - c[k];
   const double d3 = dot(ab, bp), d4 = dot(ac, bp);
-  if (d3 >= 0 && d4 <= d3) { w[1] = 1, w[0] = w[2] = 0; return; }
+  if (d3 >= 0 && d4 <= d3) {
+    w[1] = 1, w[0] = w[2] = 0;
+    return;
+  }
   const double vc = d1 * d4 - d3 * d2;
   if (vc <= 0 && d1 >= 0 && d3 <= 0) {
     const double t = d1 / (d1 - d3);
@@ -48,7 +53,10 @@ void closest_on_triangle(const double p[3], const double a[3], const double b[3]
     return;
   }
   const double d5 = dot(ab, cp), d6 = dot(ac, cp);
-  if (d6 >= 0 && d5 <= d6) { w[2] = 1, w[0] = w[1] = 0; return; }
+  if (d6 >= 0 && d5 <= d6) {
+    w[2] = 1, w[0] = w[1] = 0;
+    return;
+  }
   const double vb = d5 * d2 - d1 * d6;
   if (vb <= 0 && d2 >= 0 && d6 <= 0) {
     const double t = d2 / (d2 - d6);
@@ -156,8 +164,8 @@ struct Nearest {
   int32_t face = -1;
   double dist2 = INFINITY;
   double bary[3] = {0, 0, 0};
-  double normal[3] = {0, 0, 0};   // unit outward normal of the face
-  double signed_dist = 0.0;       // along the normal: < 0 behind the face (inside its organ)
+  double normal[3] = {0, 0, 0};  // unit outward normal of the face
+  double signed_dist = 0.0;      // along the normal: < 0 behind the face (inside its organ)
 };
 
 // Nearest face, within `radius` of p, of an organ paired with `self`.
@@ -166,8 +174,10 @@ Nearest nearest_face(const Model& m, const Positions& P, const ContactWork& cw, 
   Nearest best;
   const double cell = m.contact.cell_m;
   const double reach = radius + cw.face_radius;  // a face's centroid is within this of p
-  const int64_t lo[3] = {cell_index(p[0] - reach, cell), cell_index(p[1] - reach, cell), cell_index(p[2] - reach, cell)};
-  const int64_t hi[3] = {cell_index(p[0] + reach, cell), cell_index(p[1] + reach, cell), cell_index(p[2] + reach, cell)};
+  const int64_t lo[3] = {cell_index(p[0] - reach, cell), cell_index(p[1] - reach, cell),
+                         cell_index(p[2] - reach, cell)};
+  const int64_t hi[3] = {cell_index(p[0] + reach, cell), cell_index(p[1] + reach, cell),
+                         cell_index(p[2] + reach, cell)};
   const size_t no = m.organs.size();
   const int32_t T = m.contact.table_size;
   const int64_t cells = (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1);
@@ -241,7 +251,8 @@ int crossings(const Model& m, const Positions& P, const double p[3], const doubl
     load(P, m.face_vert[3 * f], a), load(P, m.face_vert[3 * f + 1], b), load(P, m.face_vert[3 * f + 2], c);
     double e1[3], e2[3], t[3];
     for (int k = 0; k < 3; ++k) e1[k] = b[k] - a[k], e2[k] = c[k] - a[k], t[k] = p[k] - a[k];
-    const double h[3] = {dir[1] * e2[2] - dir[2] * e2[1], dir[2] * e2[0] - dir[0] * e2[2], dir[0] * e2[1] - dir[1] * e2[0]};
+    const double h[3] = {dir[1] * e2[2] - dir[2] * e2[1], dir[2] * e2[0] - dir[0] * e2[2],
+                         dir[0] * e2[1] - dir[1] * e2[0]};
     const double det = e1[0] * h[0] + e1[1] * h[1] + e1[2] * h[2];
     if (std::abs(det) < 1e-30) continue;
     const double u = (t[0] * h[0] + t[1] * h[1] + t[2] * h[2]) / det;
@@ -277,7 +288,8 @@ bool way_home_blocked(const Model& m, const Positions& P, const ContactWork& cw,
     if (!cw.pair[static_cast<size_t>(self) * no + o]) continue;
     const double* b = &cw.box[6 * o];
     bool overlap = true;  // the segment's box against the partner's
-    for (int k = 0; k < 3; ++k) overlap = overlap && std::min(p[k], home[k]) <= b[3 + k] && std::max(p[k], home[k]) >= b[k];
+    for (int k = 0; k < 3; ++k)
+      overlap = overlap && std::min(p[k], home[k]) <= b[3 + k] && std::max(p[k], home[k]) >= b[k];
     if (overlap && crossings(m, P, p, dir, 1.0, static_cast<int32_t>(o)) > 0) return true;
   }
   return false;
@@ -368,7 +380,8 @@ ContactWork make_contact_work(const Model& m) {
   cw.clear.assign(m.nvert, 0.0), cw.moved.assign(m.nvert, 0.0);
   cw.last_x.resize(3 * static_cast<size_t>(m.nvert));
   for (int32_t v = 0; v < m.nvert; ++v)
-    cw.last_x[3 * v] = m.vert_rest_x[v], cw.last_x[3 * v + 1] = m.vert_rest_y[v], cw.last_x[3 * v + 2] = m.vert_rest_z[v];
+    cw.last_x[3 * v] = m.vert_rest_x[v], cw.last_x[3 * v + 1] = m.vert_rest_y[v],
+                  cw.last_x[3 * v + 2] = m.vert_rest_z[v];
   cw.organ_moved.assign(no, 0.0);
   cw.pair_before.assign(no * no, 0);
   size_t nodes = 0;
@@ -423,8 +436,7 @@ int project_round(const Model& m, State& s, Work& w, int32_t nc) {
       const double* b = &cw.c_bary[3 * i];
       const double* n = &cw.c_normal[3 * i];
       double C = 0;
-      for (int k = 0; k < 3; ++k)
-        C += n[k] * (X[k][v] - b[0] * X[k][fv[0]] - b[1] * X[k][fv[1]] - b[2] * X[k][fv[2]]);
+      for (int k = 0; k < 3; ++k) C += n[k] * (X[k][v] - b[0] * X[k][fv[0]] - b[1] * X[k][fv[1]] - b[2] * X[k][fv[2]]);
       if (C >= 0) continue;
       if (sweep == 0) ++violated;
       double wv = cw.weight[v], wf[3] = {1.0 * cw.weight[fv[0]], 1.0 * cw.weight[fv[1]], 1.0 * cw.weight[fv[2]]};
@@ -618,8 +630,7 @@ double max_penetration(const Model& m, const State& s, int32_t* vertex, int32_t*
       load(P, v, p);
       if (!in_partner_box(m, cw, static_cast<int32_t>(o), p, 0.0)) continue;
       const Nearest n = nearest_any(m, P, cw, p, static_cast<int32_t>(o));
-      if (n.face >= 0 && -n.signed_dist > deepest &&
-          inside_by_parity(m, P, p, m.vert_organ[m.face_vert[3 * n.face]])) {
+      if (n.face >= 0 && -n.signed_dist > deepest && inside_by_parity(m, P, p, m.vert_organ[m.face_vert[3 * n.face]])) {
         deepest = -n.signed_dist;
         if (vertex) *vertex = v;
         if (into_organ) *into_organ = m.vert_organ[m.face_vert[3 * n.face]];

@@ -14,9 +14,8 @@ void curvature_pass(const Model& m, const OrganRange& r, const State& s, Work& w
   std::fill(w.lap_y.begin() + vb, w.lap_y.begin() + ve, 0.0);
   std::fill(w.lap_z.begin() + vb, w.lap_z.begin() + ve, 0.0);
   std::fill(w.area2.begin() + vb, w.area2.begin() + ve, 0.0);
-  accumulate_cotan_laplacian(r.face_end - r.face_begin, m.face_vert.data() + 3 * r.face_begin,
-                             s.x.data(), s.y.data(), s.z.data(), w.lap_x.data(), w.lap_y.data(),
-                             w.lap_z.data(), w.area2.data());
+  accumulate_cotan_laplacian(r.face_end - r.face_begin, m.face_vert.data() + 3 * r.face_begin, s.x.data(), s.y.data(),
+                             s.z.data(), w.lap_x.data(), w.lap_y.data(), w.lap_z.data(), w.area2.data());
   // h_i = coef * H_i, H_i = 1.5 |L_i| / area2_i (geometry.cpp); coef = b L / 2 (p = 1) or
   // sqrt(b) L / 2 (p = 2), so that the spring kernel reads a + h_a + h_b or a + (h_a + h_b)^2.
   const double coef = 1.5 * kernels::elastica_vertex_coef(r.elastica_p, r.elastica_b, r.curvature_unit_m);

@@ -26,8 +26,8 @@
 namespace softatlas::sim::engine {
 
 using kernels::kTiny;
-constexpr int kSnapshotEvery = 16;      // guard: steps between snapshots of the last good state
-constexpr int32_t kCgChunk = 256;       // springs per chunk of the vectorised block assembly
+constexpr int kSnapshotEvery = 16;  // guard: steps between snapshots of the last good state
+constexpr int32_t kCgChunk = 256;   // springs per chunk of the vectorised block assembly
 
 struct IntegrateStats {
   double max_speed2 = 0.0;
@@ -55,9 +55,8 @@ void curvature_pass(const Model& m, const OrganRange& r, const State& s, Work& w
 
 // ---- flexion.cpp --------------------------------------------------------------------------------
 // grad_out (implicit): d theta / dx of each flexion spring, 12 doubles per spring.
-void flexion_forces(const Model& m, const OrganRange& r, const State& s, Work& w,
-                    double* grad_out = nullptr);
-void flexion_blocks(const Model& m, const OrganRange& r, Work& w, double h);   // Jacobi diagonal
+void flexion_forces(const Model& m, const OrganRange& r, const State& s, Work& w, double* grad_out = nullptr);
+void flexion_blocks(const Model& m, const OrganRange& r, Work& w, double h);     // Jacobi diagonal
 void flexion_velocity_terms(const Model& m, const State& s, Work& w, double h);  // h^2 K v0 of rhs
 double cg_flexion(const Model& m, const Work& w, int32_t f, double c, const float* p, float* q);
 
@@ -75,7 +74,7 @@ IntegrateStats implicit_step(const Model& m, State& s, Work& w, double h);
 
 // ---- tool.cpp -----------------------------------------------------------------------------------
 void begin_tool_step(const Model& m, const State& s, Work& w);  // free mask, attach targets' size
-void end_tool_step(State& s);                                    // attachment progress
+void end_tool_step(State& s);                                   // attachment progress
 void tool_organ_forces(const Model& m, const State& s, Work& w);
 void apply_tool(const Model& m, State& s, Work& w, bool reaction = true, bool add_force = true);
 void attach_targets(const Model& m, const State& s, Work& w, double frac);

@@ -13,8 +13,7 @@ namespace {
 // x += h v. Paper 000 Algorithm 1 (lines 9-10): p = x + v h + F h^2 / mu, v = (p - x) / h,
 // x = p; algebraically the same scheme, written in position form (docs/physics.md).
 template <bool Verlet>
-void integrate_organ(const Model& m, const OrganRange& r, State& s, Work& w, double h,
-                     IntegrateStats& st) {
+void integrate_organ(const Model& m, const OrganRange& r, State& s, Work& w, double h, IntegrateStats& st) {
   const double gx = m.gravity ? m.gravity_m_s2[0] : 0.0, gy = m.gravity ? m.gravity_m_s2[1] : 0.0,
                gz = m.gravity ? m.gravity_m_s2[2] : 0.0;
   const double* __restrict mask = w.free_mask.data();
@@ -101,14 +100,15 @@ void parallel_job(void* context, int t) {
       }
       if (s.organ_awake[o]) organ_internal_forces(m, r, s, w);
     } else if (s.organ_awake[o]) {
-      if (p.verlet) integrate_organ<true>(m, r, s, w, p.h, p.stats[t]);
-      else integrate_organ<false>(m, r, s, w, p.h, p.stats[t]);
+      if (p.verlet)
+        integrate_organ<true>(m, r, s, w, p.h, p.stats[t]);
+      else
+        integrate_organ<false>(m, r, s, w, p.h, p.stats[t]);
     }
   }
 }
 
-IntegrateStats explicit_substep_parallel(const Model& m, State& s, Work& w, double h, bool verlet,
-                                         double frac) {
+IntegrateStats explicit_substep_parallel(const Model& m, State& s, Work& w, double h, bool verlet, double frac) {
   const bool attached = s.tool.mode == ToolMode::attach && !s.tool.verts.empty();
   ParallelSubstep p{&m, &s, &w, h, verlet, 0, {}};
   w.workers->run(parallel_job, &p);
@@ -134,8 +134,7 @@ IntegrateStats explicit_substep_parallel(const Model& m, State& s, Work& w, doub
   return st;
 }
 
-IntegrateStats explicit_substep(const Model& m, State& s, Work& w, double h, bool verlet,
-                                double frac) {
+IntegrateStats explicit_substep(const Model& m, State& s, Work& w, double h, bool verlet, double frac) {
   if (w.workers) return explicit_substep_parallel(m, s, w, h, verlet, frac);
   const bool attached = s.tool.mode == ToolMode::attach && !s.tool.verts.empty();
   internal_forces(m, s, w);
@@ -147,8 +146,10 @@ IntegrateStats explicit_substep(const Model& m, State& s, Work& w, double h, boo
   IntegrateStats st;
   for (size_t o = 0; o < m.organs.size(); ++o) {
     if (!s.organ_awake[o]) continue;
-    if (verlet) integrate_organ<true>(m, m.organs[o], s, w, h, st);
-    else integrate_organ<false>(m, m.organs[o], s, w, h, st);
+    if (verlet)
+      integrate_organ<true>(m, m.organs[o], s, w, h, st);
+    else
+      integrate_organ<false>(m, m.organs[o], s, w, h, st);
   }
   w.forces_zero = all_soft_awake(m, s);
   clear_rigid_forces(m, w);

@@ -73,9 +73,8 @@ std::vector<int32_t> free_dofs(const Load& load, int32_t& nfree) {
 }
 
 // Assembles a * M + b * K_T (K_T = R K R^T per element at x) over free DOFs.
-Eigen::SparseMatrix<double> assemble(const Model& m, const std::vector<double>& x,
-                                     const std::vector<int32_t>& dof, int32_t nfree, double a,
-                                     double b) {
+Eigen::SparseMatrix<double> assemble(const Model& m, const std::vector<double>& x, const std::vector<int32_t>& dof,
+                                     int32_t nfree, double a, double b) {
   std::vector<Eigen::Triplet<double>> trip;
   trip.reserve(static_cast<size_t>(m.ntet) * 144 + static_cast<size_t>(m.nnode) * 3);
   for (int32_t t = 0; t < m.ntet; ++t) {
@@ -173,8 +172,7 @@ TetMesh read_gmsh(const std::string& path, double scale) {
         long id;
         double x, y, z;
         if (!(ss >> id >> x >> y >> z)) bad(where(), "expected 'id x y z', got '" + line + "'");
-        if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z))
-          bad(where(), "non-finite node coordinate");
+        if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) bad(where(), "non-finite node coordinate");
         if (!id_to_index.emplace(id, static_cast<int32_t>(raw_nodes.size() / 3)).second)
           bad(where(), "duplicate node id " + std::to_string(id));
         raw_nodes.insert(raw_nodes.end(), {x * scale, y * scale, z * scale});
@@ -246,8 +244,7 @@ TetMesh box_mesh(double lx, double ly, double lz, int nx, int ny, int nz) {
   auto id = [&](int i, int j, int k) { return i + (nx + 1) * (j + (ny + 1) * k); };
   for (int k = 0; k <= nz; ++k)
     for (int j = 0; j <= ny; ++j)
-      for (int i = 0; i <= nx; ++i)
-        mesh.nodes.insert(mesh.nodes.end(), {lx * i / nx, ly * j / ny, lz * k / nz});
+      for (int i = 0; i <= nx; ++i) mesh.nodes.insert(mesh.nodes.end(), {lx * i / nx, ly * j / ny, lz * k / nz});
   static const int perms[6][3] = {{0, 1, 2}, {0, 2, 1}, {1, 0, 2}, {1, 2, 0}, {2, 0, 1}, {2, 1, 0}};
   for (int k = 0; k < nz; ++k)
     for (int j = 0; j < ny; ++j)
@@ -269,9 +266,8 @@ std::vector<int32_t> boundary_faces(const TetMesh& mesh) {
   for (int32_t t = 0; t < mesh.ntet(); ++t) {
     const int32_t* n = &mesh.tets[4 * t];
     const Vec3 x0 = node(mesh.nodes, n[0]);
-    const double det = (node(mesh.nodes, n[1]) - x0)
-                           .cross(node(mesh.nodes, n[2]) - x0)
-                           .dot(node(mesh.nodes, n[3]) - x0);
+    const double det =
+        (node(mesh.nodes, n[1]) - x0).cross(node(mesh.nodes, n[2]) - x0).dot(node(mesh.nodes, n[3]) - x0);
     for (const auto& f : opp) {
       std::array<int32_t, 3> tri = {n[f[0]], n[f[1]], n[f[2]]};
       if (det < 0) std::swap(tri[1], tri[2]);
@@ -329,8 +325,8 @@ Model compile(const TetMesh& mesh, const Material& material) {
     int32_t* n = &m.tets[4 * t];
     for (int a = 0; a < 4; ++a)
       if (n[a] < 0 || n[a] >= m.nnode)
-        bad(where, "tetrahedron " + std::to_string(t) + " has node index " + std::to_string(n[a]) +
-                       " outside [0, " + std::to_string(m.nnode) + ")");
+        bad(where, "tetrahedron " + std::to_string(t) + " has node index " + std::to_string(n[a]) + " outside [0, " +
+                       std::to_string(m.nnode) + ")");
     Mat3 Dm;
     for (int c = 0; c < 3; ++c) Dm.col(c) = node(m.rest, n[c + 1]) - node(m.rest, n[0]);
     double det = Dm.determinant();
@@ -360,9 +356,7 @@ Model compile(const TetMesh& mesh, const Material& material) {
   return m;
 }
 
-Load make_load(const Model& model) {
-  return empty_load(model.nnode);
-}
+Load make_load(const Model& model) { return empty_load(model.nnode); }
 
 void fix_nodes(Load& load, const std::vector<int32_t>& nodes, const std::array<double, 3>& disp_m) {
   for (int32_t n : nodes)
@@ -391,8 +385,7 @@ void internal_forces(const Model& m, const std::vector<double>& x, std::vector<d
   }
 }
 
-StaticReport solve_static(const Model& m, const Load& load, std::vector<double>& x,
-                          const StaticOptions& opt) {
+StaticReport solve_static(const Model& m, const Load& load, std::vector<double>& x, const StaticOptions& opt) {
   StaticReport rep;
   int32_t nfree = 0;
   const std::vector<int32_t> dof = free_dofs(load, nfree);
@@ -497,8 +490,7 @@ void step_implicit(const Model& m, const Load& load, State& st, double h) {
   st.time_s += h;
 }
 
-std::array<double, 3> reaction_force(const Model& m, const std::vector<double>& x,
-                                     const std::vector<int32_t>& nodes) {
+std::array<double, 3> reaction_force(const Model& m, const std::vector<double>& x, const std::vector<int32_t>& nodes) {
   std::vector<double> f;
   internal_forces(m, x, f);
   return node_sum(f, nodes);
@@ -591,8 +583,7 @@ Embedding embed_points(const Model& m, const std::vector<double>& pts) {
   return emb;
 }
 
-void interpolate(const Model& m, const Embedding& emb, const std::vector<double>& x,
-                 std::vector<double>& out) {
+void interpolate(const Model& m, const Embedding& emb, const std::vector<double>& x, std::vector<double>& out) {
   const size_t np = emb.tet.size();
   out.assign(3 * np, 0.0);
   for (size_t q = 0; q < np; ++q) {

@@ -140,8 +140,8 @@ Mat9 neo_hookean_tangent(const QuadraticModel& q, const Mat3& F) {
     for (int l = 0; l < 3; ++l) {
       Mat3 dF = Mat3::Zero();
       dF(j, l) = 1.0;
-      const Mat3 dP = mu * dF + (mu - lambda * lnJ) * FinvT * dF.transpose() * FinvT +
-                      lambda * (Finv * dF).trace() * FinvT;
+      const Mat3 dP =
+          mu * dF + (mu - lambda * lnJ) * FinvT * dF.transpose() * FinvT + lambda * (Finv * dF).trace() * FinvT;
       A.col(3 * j + l) = vec(dP);
     }
   return 0.5 * (A + A.transpose());
@@ -230,7 +230,8 @@ QuadraticModel compile_quadratic(const TetMesh& mesh, const Material& material) 
   q.rest.resize(3 * static_cast<size_t>(q.nnode));
   for (int32_t e = 0; e < q.nnode - q.nvertex; ++e)
     for (int c = 0; c < 3; ++c)
-      q.rest[3 * (q.nvertex + e) + c] = 0.5 * (q.linear.rest[3 * q.edge_ends[2 * e] + c] + q.linear.rest[3 * q.edge_ends[2 * e + 1] + c]);
+      q.rest[3 * (q.nvertex + e) + c] =
+          0.5 * (q.linear.rest[3 * q.edge_ends[2 * e] + c] + q.linear.rest[3 * q.edge_ends[2 * e + 1] + c]);
   // CSR by the smaller corner (std::map iterates in key order).
   q.edge_offset.assign(q.nvertex + 1, 0);
   for (const auto& kv : edges) ++q.edge_offset[kv.first.first + 1];
@@ -260,9 +261,7 @@ std::vector<int32_t> quadratic_region(const QuadraticModel& q, const std::vector
   return out;
 }
 
-Load make_load(const QuadraticModel& q) {
-  return empty_load(q.nnode);
-}
+Load make_load(const QuadraticModel& q) { return empty_load(q.nnode); }
 
 void add_traction(const QuadraticModel& q, Load& load, const std::vector<int32_t>& faces,
                   const std::array<double, 3>& traction_pa) {
@@ -316,8 +315,7 @@ void tangent_times(const QuadraticModel& q, const std::vector<double>& x, const 
   }
 }
 
-StaticReport solve_static(const QuadraticModel& q, const Load& load, std::vector<double>& x,
-                          const StaticOptions& opt) {
+StaticReport solve_static(const QuadraticModel& q, const Load& load, std::vector<double>& x, const StaticOptions& opt) {
   StaticReport rep;
   const size_t ndof = 3 * static_cast<size_t>(q.nnode);
   if (x.size() != ndof || load.force.size() != ndof || load.dof_fixed.size() != ndof || load.dof_disp.size() != ndof)
@@ -342,8 +340,10 @@ StaticReport solve_static(const QuadraticModel& q, const Load& load, std::vector
     r.resize(nfree);
     double react = 0.0;
     for (size_t d = 0; d < ndof; ++d) {
-      if (dof[d] >= 0) r[dof[d]] = lam * load.force[d] + fint[d];
-      else react += fint[d] * fint[d];
+      if (dof[d] >= 0)
+        r[dof[d]] = lam * load.force[d] + fint[d];
+      else
+        react += fint[d] * fint[d];
     }
     return r.norm() / (std::max(lam * fnorm, std::sqrt(react)) + 1e-300);
   };
@@ -379,8 +379,10 @@ StaticReport solve_static(const QuadraticModel& q, const Load& load, std::vector
           for (int b = 0; b < 30; ++b) {
             const size_t db = 3 * static_cast<size_t>(q.tets[10 * t + b / 3]) + b % 3;
             const int32_t gb = dof[db];
-            if (gb >= 0) trip.emplace_back(ga, gb, Ke(a, b));
-            else kc[ga] += Ke(a, b) * dc[static_cast<Eigen::Index>(db)];
+            if (gb >= 0)
+              trip.emplace_back(ga, gb, Ke(a, b));
+            else
+              kc[ga] += Ke(a, b) * dc[static_cast<Eigen::Index>(db)];
           }
         }
       }

@@ -31,8 +31,7 @@ void flex_add(const Model& m, const Work& w, int32_t f, double c, double* qx, do
 //   g_c = -|e| n1 / |n1|^2, g_d = -|e| n2 / |n2|^2,
 //   g_a = -((1 - t_c) g_c + (1 - t_d) g_d), g_b = -(t_c g_c + t_d g_d),
 // t_c = (c - a).e / |e|^2 (where c projects on the edge), e = b - a.
-void flexion_forces(const Model& m, const OrganRange& r, const State& s, Work& w,
-                    double* grad_out) {
+void flexion_forces(const Model& m, const OrganRange& r, const State& s, Work& w, double* grad_out) {
   const double* X = s.x.data();
   const double* Y = s.y.data();
   const double* Z = s.z.data();
@@ -45,8 +44,7 @@ void flexion_forces(const Model& m, const OrganRange& r, const State& s, Work& w
     const double q[3] = {pd[0] - pb[0], pd[1] - pb[1], pd[2] - pb[2]};
     const double n1[3] = {e[1] * u[2] - e[2] * u[1], e[2] * u[0] - e[0] * u[2], e[0] * u[1] - e[1] * u[0]};
     // n2 = (a - b) x (d - b) = -e x q
-    const double n2[3] = {-(e[1] * q[2] - e[2] * q[1]), -(e[2] * q[0] - e[0] * q[2]),
-                          -(e[0] * q[1] - e[1] * q[0])};
+    const double n2[3] = {-(e[1] * q[2] - e[2] * q[1]), -(e[2] * q[0] - e[0] * q[2]), -(e[0] * q[1] - e[1] * q[0])};
     const double n1s = n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2];
     const double n2s = n2[0] * n2[0] + n2[1] * n2[1] + n2[2] * n2[2];
     const double es = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
@@ -90,8 +88,8 @@ void flexion_blocks(const Model& m, const OrganRange& r, Work& w, double h) {
 void flexion_velocity_terms(const Model& m, const State& s, Work& w, double h) {
   for (int32_t f = 0; f < m.nflex; ++f)
     if (s.organ_awake[m.vert_organ[m.flex_a[f]]])
-      flex_add(m, w, f, -h * m.flex_k[f] * flex_dot(m, w, f, s.vx.data(), s.vy.data(), s.vz.data()),
-               w.fx.data(), w.fy.data(), w.fz.data());
+      flex_add(m, w, f, -h * m.flex_k[f] * flex_dot(m, w, f, s.vx.data(), s.vy.data(), s.vz.data()), w.fx.data(),
+               w.fy.data(), w.fz.data());
 }
 
 // The same on the CG's 4-float vectors; returns the energy c (g . p)^2.

@@ -34,13 +34,13 @@ inline double elastica_vertex_coef(int p, double b, double unit_m) {
 // loop then reloads positions after every scattered store (measured 1.4x slower).
 template <int P, bool Damped>
 __attribute__((noinline)) void spring_forces(int32_t begin, int32_t end, const int32_t* __restrict sa,
-                          const int32_t* __restrict sb, const double* __restrict rest,
-                          const double* __restrict k, const double* __restrict d, double a, double cap,
-                          const double* __restrict x, const double* __restrict y,
-                          const double* __restrict z, const double* __restrict vx,
-                          const double* __restrict vy, const double* __restrict vz,
-                          const double* __restrict h, double* __restrict fx,
-                          double* __restrict fy, double* __restrict fz) {
+                                             const int32_t* __restrict sb, const double* __restrict rest,
+                                             const double* __restrict k, const double* __restrict d, double a,
+                                             double cap, const double* __restrict x, const double* __restrict y,
+                                             const double* __restrict z, const double* __restrict vx,
+                                             const double* __restrict vy, const double* __restrict vz,
+                                             const double* __restrict h, double* __restrict fx, double* __restrict fy,
+                                             double* __restrict fz) {
   for (int32_t s = begin; s < end; ++s) {
     const int32_t i = sa[s], j = sb[s];
     const double dx = x[j] - x[i], dy = y[j] - y[i], dz = z[j] - z[i];

@@ -9,8 +9,8 @@ namespace {
 constexpr double kTinyArea2 = 1e-300;
 }
 
-void vertex_normals(size_t nvert, const double* x, const double* y, const double* z,
-                    size_t nface, const int32_t* faces, double* normals) {
+void vertex_normals(size_t nvert, const double* x, const double* y, const double* z, size_t nface, const int32_t* faces,
+                    double* normals) {
   std::vector<int32_t> count(nvert, 0);
   std::fill(normals, normals + 3 * nvert, 0.0);
   for (size_t f = 0; f < nface; ++f) {
@@ -34,9 +34,8 @@ void vertex_normals(size_t nvert, const double* x, const double* y, const double
   }
 }
 
-void accumulate_cotan_laplacian(size_t nface, const int32_t* faces, const double* x,
-                                const double* y, const double* z, double* lap_x, double* lap_y,
-                                double* lap_z, double* area2) {
+void accumulate_cotan_laplacian(size_t nface, const int32_t* faces, const double* x, const double* y, const double* z,
+                                double* lap_x, double* lap_y, double* lap_z, double* area2) {
   for (size_t f = 0; f < nface; ++f) {
     const int32_t i = faces[3 * f], j = faces[3 * f + 1], k = faces[3 * f + 2];
     const double eijx = x[j] - x[i], eijy = y[j] - y[i], eijz = z[j] - z[i];
@@ -62,8 +61,8 @@ void accumulate_cotan_laplacian(size_t nface, const int32_t* faces, const double
   }
 }
 
-void mean_curvature_from_laplacian(size_t nvert, const double* lap_x, const double* lap_y,
-                                   const double* lap_z, const double* area2, double* kappa) {
+void mean_curvature_from_laplacian(size_t nvert, const double* lap_x, const double* lap_y, const double* lap_z,
+                                   const double* area2, double* kappa) {
   // The cotangent sum equals 4 A_i H N with A_i the vertex's (barycentric) area share
   // (Meyer et al. 2003). Eq 2 as printed divides by 4 A with A the *whole* 1-ring area, which is
   // 3 A_i, and so yields H / 3. We return the mean curvature H itself (1/r on a sphere):
@@ -78,27 +77,25 @@ std::vector<double> mean_curvature(const std::vector<double>& V, const std::vect
   const size_t n = V.size() / 3;
   std::vector<double> x(n), y(n), z(n), lx(n), ly(n), lz(n), a2(n), kappa(n);
   for (size_t i = 0; i < n; ++i) x[i] = V[3 * i], y[i] = V[3 * i + 1], z[i] = V[3 * i + 2];
-  accumulate_cotan_laplacian(F.size() / 3, F.data(), x.data(), y.data(), z.data(), lx.data(),
-                             ly.data(), lz.data(), a2.data());
+  accumulate_cotan_laplacian(F.size() / 3, F.data(), x.data(), y.data(), z.data(), lx.data(), ly.data(), lz.data(),
+                             a2.data());
   mean_curvature_from_laplacian(n, lx.data(), ly.data(), lz.data(), a2.data(), kappa.data());
   return kappa;
 }
 
-double enclosed_volume(const double* x, const double* y, const double* z, const int32_t* faces,
-                       size_t face_begin, size_t face_end) {
+double enclosed_volume(const double* x, const double* y, const double* z, const int32_t* faces, size_t face_begin,
+                       size_t face_end) {
   double v6 = 0.0;
   for (size_t f = face_begin; f < face_end; ++f) {
     const int32_t i = faces[3 * f], j = faces[3 * f + 1], k = faces[3 * f + 2];
     // x_i . (x_j x x_k)
-    v6 += x[i] * (y[j] * z[k] - z[j] * y[k]) + y[i] * (z[j] * x[k] - x[j] * z[k]) +
-          z[i] * (x[j] * y[k] - y[j] * x[k]);
+    v6 += x[i] * (y[j] * z[k] - z[j] * y[k]) + y[i] * (z[j] * x[k] - x[j] * z[k]) + z[i] * (x[j] * y[k] - y[j] * x[k]);
   }
   return v6 / 6.0;
 }
 
-void add_volume_gradient(const double* x, const double* y, const double* z, const int32_t* faces,
-                         size_t face_begin, size_t face_end, int32_t offset, double* gx, double* gy,
-                         double* gz) {
+void add_volume_gradient(const double* x, const double* y, const double* z, const int32_t* faces, size_t face_begin,
+                         size_t face_end, int32_t offset, double* gx, double* gy, double* gz) {
   auto add = [&](int32_t v, int32_t p, int32_t q) {  // x_p x x_q / 6
     gx[v] += (y[p] * z[q] - z[p] * y[q]) / 6.0;
     gy[v] += (z[p] * x[q] - x[p] * z[q]) / 6.0;
@@ -115,13 +112,12 @@ double enclosed_volume(const std::vector<double>& V, const std::vector<int32_t>&
   const size_t n = V.size() / 3;
   if (n == 0) return 0.0;
   std::vector<double> x(n), y(n), z(n);
-  for (size_t i = 0; i < n; ++i)
-    x[i] = V[3 * i] - V[0], y[i] = V[3 * i + 1] - V[1], z[i] = V[3 * i + 2] - V[2];
+  for (size_t i = 0; i < n; ++i) x[i] = V[3 * i] - V[0], y[i] = V[3 * i + 1] - V[1], z[i] = V[3 * i + 2] - V[2];
   return enclosed_volume(x.data(), y.data(), z.data(), F.data(), 0, F.size() / 3);
 }
 
-double surface_area(const double* x, const double* y, const double* z, const int32_t* faces,
-                    size_t face_begin, size_t face_end) {
+double surface_area(const double* x, const double* y, const double* z, const int32_t* faces, size_t face_begin,
+                    size_t face_end) {
   double a = 0.0;
   for (size_t f = face_begin; f < face_end; ++f) {
     const int32_t i = faces[3 * f], j = faces[3 * f + 1], k = faces[3 * f + 2];
@@ -133,8 +129,8 @@ double surface_area(const double* x, const double* y, const double* z, const int
   return a;
 }
 
-void area_masses(const double* x, const double* y, const double* z, const int32_t* faces,
-                 size_t face_begin, size_t face_end, double total_mass, double* mass) {
+void area_masses(const double* x, const double* y, const double* z, const int32_t* faces, size_t face_begin,
+                 size_t face_end, double total_mass, double* mass) {
   const double area = surface_area(x, y, z, faces, face_begin, face_end);
   if (!(area > 0.0)) return;
   for (size_t f = face_begin; f < face_end; ++f) {
@@ -150,15 +146,12 @@ double dihedral_angle(const double* pa, const double* pb, const double* pc, cons
   const double e[3] = {pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]};
   const double u[3] = {pc[0] - pa[0], pc[1] - pa[1], pc[2] - pa[2]};
   const double w[3] = {pd[0] - pa[0], pd[1] - pa[1], pd[2] - pa[2]};
-  const double n1[3] = {e[1] * u[2] - e[2] * u[1], e[2] * u[0] - e[0] * u[2],
-                        e[0] * u[1] - e[1] * u[0]};
+  const double n1[3] = {e[1] * u[2] - e[2] * u[1], e[2] * u[0] - e[0] * u[2], e[0] * u[1] - e[1] * u[0]};
   // (a - b) x (d - b) = (-e) x (w - e) = -e x w
-  const double n2[3] = {-(e[1] * w[2] - e[2] * w[1]), -(e[2] * w[0] - e[0] * w[2]),
-                        -(e[0] * w[1] - e[1] * w[0])};
+  const double n2[3] = {-(e[1] * w[2] - e[2] * w[1]), -(e[2] * w[0] - e[0] * w[2]), -(e[0] * w[1] - e[1] * w[0])};
   const double el = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
   const double cosv = n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2];
-  const double c12[3] = {n1[1] * n2[2] - n1[2] * n2[1], n1[2] * n2[0] - n1[0] * n2[2],
-                         n1[0] * n2[1] - n1[1] * n2[0]};
+  const double c12[3] = {n1[1] * n2[2] - n1[2] * n2[1], n1[2] * n2[0] - n1[0] * n2[2], n1[0] * n2[1] - n1[1] * n2[0]};
   const double sinv = el > 0 ? (c12[0] * e[0] + c12[1] * e[1] + c12[2] * e[2]) / el : 0.0;
   // Angle between the normals, signed by the fold direction about e.
   return std::atan2(sinv, cosv);

@@ -49,8 +49,9 @@ bool guard_check(const Model& m, State& s, Work& w, const IntegrateStats& st, St
     s.guard_implicit = true;
     ++s.guard_restores;
     rep.status = StepStatus::restored;
-    rep.message = "guard: non-finite or runaway state; restored the last good state and "
-                  "switched to implicit Euler";
+    rep.message =
+        "guard: non-finite or runaway state; restored the last good state and "
+        "switched to implicit Euler";
     rep.max_speed_m_s = 0.0;
   }
   if (rep.status != StepStatus::ok || rep.tool_clamped) ++s.guard_actions;
@@ -67,10 +68,14 @@ namespace softatlas::sim {
 
 const char* to_string(StepStatus status) {
   switch (status) {
-    case StepStatus::ok: return "ok";
-    case StepStatus::substepped: return "substepped";
-    case StepStatus::implicit_fallback: return "implicit-fallback";
-    case StepStatus::restored: return "restored";
+    case StepStatus::ok:
+      return "ok";
+    case StepStatus::substepped:
+      return "substepped";
+    case StepStatus::implicit_fallback:
+      return "implicit-fallback";
+    case StepStatus::restored:
+      return "restored";
   }
   return "?";
 }

@@ -54,8 +54,8 @@ constexpr double kCgFloatFloor = 1e-7;  // relative residual a float CG can reac
 
 // Springs [begin, end) one at a time, both ends scattered: q += blocks p, returns p . blocks p
 // (connection springs, and the last springs of an organ).
-double cg_springs(int32_t begin, int32_t end, const int32_t* ca, const int32_t* cb, const float* blk,
-                  const float* p, float* q) {
+double cg_springs(int32_t begin, int32_t end, const int32_t* ca, const int32_t* cb, const float* blk, const float* p,
+                  float* q) {
   d4 pq = {0, 0, 0, 0};
   for (int32_t s = begin; s < end; ++s) {
     const int32_t i = ca[s], j = cb[s];
@@ -81,8 +81,7 @@ __attribute__((noinline)) double cg_apply_organ(int32_t vb, int32_t ve, int32_t 
                                                 const int32_t* __restrict sa, const int32_t* __restrict sb,
                                                 const float* __restrict blk, const float* __restrict mass,
                                                 const float* __restrict inv, const float* __restrict r,
-                                                float* __restrict p, float* __restrict q, float beta,
-                                                bool springs) {
+                                                float* __restrict p, float* __restrict q, float beta, bool springs) {
   const f4 vbeta = splat4(beta);
   d4 pq = {0, 0, 0, 0};
   for (int32_t v = vb; v < ve; ++v) {
@@ -119,7 +118,8 @@ __attribute__((noinline)) double cg_apply_organ(int32_t vb, int32_t ve, int32_t 
   int32_t t = sbeg;
   for (; t + 4 <= send; t += 4) two(t, e[0]), two(t + 2, e[1]);
   const f8 e2 = e[0] + e[1];
-  pq += __builtin_convertvector(__builtin_shufflevector(e2, e2, 0, 1, 2, 3) + __builtin_shufflevector(e2, e2, 4, 5, 6, 7), d4);
+  pq += __builtin_convertvector(
+      __builtin_shufflevector(e2, e2, 0, 1, 2, 3) + __builtin_shufflevector(e2, e2, 4, 5, 6, 7), d4);
   return hsum3(pq) + cg_springs(t, send, sa, sb, blk, p, q);  // with the last 0-3 springs
 }
 
@@ -127,8 +127,8 @@ __attribute__((noinline)) double cg_apply_organ(int32_t vb, int32_t ve, int32_t 
 // the residual over free vertices (inv != 0 exactly there) to rr. r is not masked: frozen
 // vertices' entries are never read through z or rr.
 __attribute__((noinline)) void cg_update(int32_t b4, int32_t e4, float a, const float* __restrict inv,
-                                         const float* __restrict p, const float* __restrict q,
-                                         float* __restrict x, float* __restrict r, double& rz, double& rr) {
+                                         const float* __restrict p, const float* __restrict q, float* __restrict x,
+                                         float* __restrict r, double& rz, double& rr) {
   // float partial sums over chunks of 256 entries (vectorised), chunks summed in double
   double sz = 0.0, sr = 0.0;
   for (int32_t c = b4; c < e4; c += 256) {
@@ -199,8 +199,8 @@ void pcg_component(ImplicitSolve& S, int32_t comp) {
       store4(r + 4 * v, rv);
       store4(b + 4 * v, rv);
       store4(x + 4 * v, splat4(0)), store4(p + 4 * v, splat4(0)), store4(q + 4 * v, splat4(0));
-      rz_old += double(rv[0]) * rv[0] * float(ix) + double(rv[1]) * rv[1] * float(iy) +
-                double(rv[2]) * rv[2] * float(iz);
+      rz_old +=
+          double(rv[0]) * rv[0] * float(ix) + double(rv[1]) * rv[1] * float(iy) + double(rv[2]) * rv[2] * float(iz);
       rr0 += double(rv[0]) * rv[0] + double(rv[1]) * rv[1] + double(rv[2]) * rv[2];
     }
   }
@@ -225,10 +225,10 @@ void pcg_component(ImplicitSolve& S, int32_t comp) {
       const float* blk = w.jac.data();
       const int32_t* sa = w.cg_sa.data();
       const int32_t* sbb = w.cg_sb.data();
-      pq += update ? cg_apply_organ<true>(g.vert_begin, g.vert_end, g.spring_begin, g.spring_end, sa, sbb,
-                                          blk, w.cg_mass.data(), inv, r, pp, q, static_cast<float>(beta), springs)
-                   : cg_apply_organ<false>(g.vert_begin, g.vert_end, g.spring_begin, g.spring_end, sa, sbb,
-                                           blk, w.cg_mass.data(), inv, r, pp, q, 0.0f, springs);
+      pq += update ? cg_apply_organ<true>(g.vert_begin, g.vert_end, g.spring_begin, g.spring_end, sa, sbb, blk,
+                                          w.cg_mass.data(), inv, r, pp, q, static_cast<float>(beta), springs)
+                   : cg_apply_organ<false>(g.vert_begin, g.vert_end, g.spring_begin, g.spring_end, sa, sbb, blk,
+                                           w.cg_mass.data(), inv, r, pp, q, 0.0f, springs);
     }
     if (ce > cb) pq += cg_springs(cb, ce, m.conn_a.data(), m.conn_b.data(), w.cjac.data(), pp, q);
     for (int32_t k = ob; k < oe; ++k) {

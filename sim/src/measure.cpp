@@ -9,8 +9,7 @@ namespace softatlas::sim {
 
 double organ_volume(const Model& m, const State& s, int32_t organ) {
   const OrganRange& r = m.organs[organ];
-  return enclosed_volume(s.x.data(), s.y.data(), s.z.data(), m.face_vert.data(), r.face_begin,
-                         r.face_end);
+  return enclosed_volume(s.x.data(), s.y.data(), s.z.data(), m.face_vert.data(), r.face_begin, r.face_end);
 }
 
 double total_volume(const Model& m, const State& s) {
@@ -22,8 +21,7 @@ double total_volume(const Model& m, const State& s) {
 double max_displacement(const Model& m, const State& s) {
   double d2 = 0;
   for (int32_t v = 0; v < m.nvert; ++v) {
-    const double dx = s.x[v] - m.vert_rest_x[v], dy = s.y[v] - m.vert_rest_y[v],
-                 dz = s.z[v] - m.vert_rest_z[v];
+    const double dx = s.x[v] - m.vert_rest_x[v], dy = s.y[v] - m.vert_rest_y[v], dz = s.z[v] - m.vert_rest_z[v];
     d2 = std::max(d2, dx * dx + dy * dy + dz * dz);
   }
   return std::sqrt(d2);
@@ -47,9 +45,10 @@ double total_energy(const Model& m, const State& s) {
   }
   if (m.gravity)
     for (int32_t v = 0; v < m.nvert; ++v)
-      if (!solid_vertex(m, v)) e -= m.vert_mass[v] * (m.gravity_m_s2[0] * (s.x[v] - m.vert_rest_x[v]) +
-                             m.gravity_m_s2[1] * (s.y[v] - m.vert_rest_y[v]) +
-                             m.gravity_m_s2[2] * (s.z[v] - m.vert_rest_z[v]));
+      if (!solid_vertex(m, v))
+        e -= m.vert_mass[v] *
+             (m.gravity_m_s2[0] * (s.x[v] - m.vert_rest_x[v]) + m.gravity_m_s2[1] * (s.y[v] - m.vert_rest_y[v]) +
+              m.gravity_m_s2[2] * (s.z[v] - m.vert_rest_z[v]));
   return e;
 }
 
@@ -59,8 +58,8 @@ void compute_internal_forces(const Model& m, const State& s, Work& w) {
   engine::internal_forces(m, awake, w);
 }
 
-void internal_force_and_torque(const Model& m, const State& s, Work& w,
-                               std::array<double, 3>& force, std::array<double, 3>& torque) {
+void internal_force_and_torque(const Model& m, const State& s, Work& w, std::array<double, 3>& force,
+                               std::array<double, 3>& torque) {
   compute_internal_forces(m, s, w);
   force = {0, 0, 0};
   torque = {0, 0, 0};

@@ -31,8 +31,8 @@ struct Rows {
   std::vector<std::vector<double>> x;  // ny * nz
 };
 
-Rows surface_rows(const std::vector<double>& V, const std::vector<int32_t>& F, double y0, double z0,
-                  double step, int ny, int nz) {
+Rows surface_rows(const std::vector<double>& V, const std::vector<int32_t>& F, double y0, double z0, double step,
+                  int ny, int nz) {
   Rows rows{ny, nz, y0, z0, step, std::vector<std::vector<double>>(static_cast<size_t>(ny) * nz)};
   const size_t nf = F.size() / 3;
   for (size_t f = 0; f < nf; ++f) {
@@ -84,7 +84,8 @@ SolidLattice solid_lattice(const std::vector<double>& V, const std::vector<int32
     n[c] = static_cast<int>(std::ceil((hi[c] - lo[c]) / h + 0.5));
     o[c] = 0.5 * (lo[c] + hi[c]) - 0.5 * n[c] * h;  // centred: the surface keeps >= h/4 margin
   }
-  if (static_cast<double>(n[0]) * n[1] * n[2] > 5e7) throw InputError("solid lattice", "spacing too small for the organ");
+  if (static_cast<double>(n[0]) * n[1] * n[2] > 5e7)
+    throw InputError("solid lattice", "spacing too small for the organ");
   const auto cell_id = [&](int i, int j, int k) { return (static_cast<int64_t>(k) * n[1] + j) * n[0] + i; };
   const int64_t ncell = static_cast<int64_t>(n[0]) * n[1] * n[2];
 

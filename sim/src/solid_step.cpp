@@ -38,17 +38,17 @@ namespace {
 using Mat3 = Eigen::Matrix3d;
 using ColMatX3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
 
-constexpr int kDefaultNodes = 300;       // lattice nodes per organ when the material gives none
-constexpr int kMaxVolumePieces = 8;  // closed surface pieces of one organ with a volume constraint
-constexpr double kVolumeBand = 0.005;  // a piece's volume is kept within +-0.5 % of its rest volume
-constexpr double kVolumeStep = 0.3;  // cells a node may move per step to keep or give back a piece's volume
-constexpr int kDefaultIterations = 4;    // local/global iterations per step (docs/physics.md)
+constexpr int kDefaultNodes = 300;            // lattice nodes per organ when the material gives none
+constexpr int kMaxVolumePieces = 8;           // closed surface pieces of one organ with a volume constraint
+constexpr double kVolumeBand = 0.005;         // a piece's volume is kept within +-0.5 % of its rest volume
+constexpr double kVolumeStep = 0.3;           // cells a node may move per step to keep or give back a piece's volume
+constexpr int kDefaultIterations = 4;         // local/global iterations per step (docs/physics.md)
 constexpr double kDefaultDampingRatio = 0.5;  // Rayleigh ratio at the lowest shear mode
-constexpr int kRotationIterations = 1;   // warm-started rotation-fit iterations per local step
-constexpr int kSceneNodes = 1500;       // lattice nodes of all solid organs of a scene together
-constexpr int kMinNodes = 80;           // the smallest organ's lattice when the scene total shares
-constexpr int kMaxThinNodes = 400;      // most nodes the thickness rule may give one organ
-constexpr int kSceneThinNodes = 4000;   // ... and all organs of a scene together (real time, docs/physics.md)
+constexpr int kRotationIterations = 1;        // warm-started rotation-fit iterations per local step
+constexpr int kSceneNodes = 1500;             // lattice nodes of all solid organs of a scene together
+constexpr int kMinNodes = 80;                 // the smallest organ's lattice when the scene total shares
+constexpr int kMaxThinNodes = 400;            // most nodes the thickness rule may give one organ
+constexpr int kSceneThinNodes = 4000;         // ... and all organs of a scene together (real time, docs/physics.md)
 // Cells no larger than kThicknessCell * V / A: a long tube of diameter d (V / A = d / 4) gets 3
 // cells across, a slab of thickness t (V / A = t / 2) 1.5. Coarser lattices of thin organs
 // (aorta, veins, pancreas: 1-2 cells across) lost 10-120 % of their volume under a 30 mm pull.
@@ -57,9 +57,8 @@ constexpr double kThicknessCell = 4.0 / 3.0;
 Mat3 quat_matrix(const double* q) {
   const double w = q[0], x = q[1], y = q[2], z = q[3];
   Mat3 R;
-  R << 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
-       2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
-       2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y);
+  R << 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y), 2 * (x * y + w * z), 1 - 2 * (x * x + z * z),
+      2 * (y * z - w * x), 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y);
   return R;
 }
 
@@ -101,8 +100,8 @@ void rotation_fit(const Mat3& A, double* q, double* Rm, int iterations) {
 double volume_shift(const Mat3& S) {
   // det(S + t I) = t^3 + c2 t^2 + c1 t + c0: c2 = tr S, c1 = sum of principal 2x2 minors, c0 = det S
   const double c2 = S.trace();
-  const double c1 = S(1, 1) * S(2, 2) - S(1, 2) * S(2, 1) + S(0, 0) * S(2, 2) - S(0, 2) * S(2, 0) +
-                    S(0, 0) * S(1, 1) - S(0, 1) * S(1, 0);
+  const double c1 = S(1, 1) * S(2, 2) - S(1, 2) * S(2, 1) + S(0, 0) * S(2, 2) - S(0, 2) * S(2, 0) + S(0, 0) * S(1, 1) -
+                    S(0, 1) * S(1, 0);
   const double c0 = S.determinant() - 1.0;
   const double t0 = (3.0 - c2) * (1.0 / 3.0);
   double t = t0;
@@ -166,7 +165,8 @@ void add_laplacian(const SolidBody& b, const std::vector<double>& w, Triplets& T
 
 // sum_c w_c G_c^T G_c of the cells' volume constraints.
 void add_cell_laplacian(const SolidBody& b, Triplets& T) {
-  for (int32_t c = 0; c < b.ncell; ++c) add_element_gram(&b.cell_nodes[8 * c], &b.cell_grad[24 * c], 8, b.w_volume[c], T);
+  for (int32_t c = 0; c < b.ncell; ++c)
+    add_element_gram(&b.cell_nodes[8 * c], &b.cell_grad[24 * c], 8, b.w_volume[c], T);
 }
 
 // Lowest nonzero shear frequency of the free lattice: L_mu u = omega^2 M u with the scalar
@@ -293,8 +293,8 @@ std::vector<int32_t> surface_pieces(const std::vector<int32_t>& F, int32_t nv, i
 
 // The organ's lattice: the scene share's node budget, refined for thin organs (kThicknessCell)
 // up to max_nodes nodes.
-SolidLattice organ_lattice(const std::vector<double>& V, const std::vector<int32_t>& F, double volume_m3,
-                           int budget, int max_nodes) {
+SolidLattice organ_lattice(const std::vector<double>& V, const std::vector<int32_t>& F, double volume_m3, int budget,
+                           int max_nodes) {
   SolidLattice L = solid_lattice_budget(V, F, budget);
   double area = 0.0;
   for (size_t f = 0; f + 2 < F.size(); f += 3) {
@@ -324,8 +324,9 @@ void compile_solids(const SceneDesc& scene, Model& m) {
     if (r.model == ModelKind::solid) solid_volume += std::fabs(r.rest_volume_m3);
   const auto budget_of = [&](const OrganRange& r, const Material& mat) {
     const double share = solid_volume > 0 ? std::fabs(r.rest_volume_m3) / solid_volume : 1.0;
-    return mat.solid_nodes > 0 ? mat.solid_nodes
-                               : std::clamp(static_cast<int>(std::lround(kSceneNodes * share)), kMinNodes, kDefaultNodes);
+    return mat.solid_nodes > 0
+               ? mat.solid_nodes
+               : std::clamp(static_cast<int>(std::lround(kSceneNodes * share)), kMinNodes, kDefaultNodes);
   };
   // each solid organ's rest surface with organ-local vertex indices
   std::vector<std::vector<double>> surf_v(norg);
@@ -338,7 +339,7 @@ void compile_solids(const SceneDesc& scene, Model& m) {
     V.resize(3 * static_cast<size_t>(nv));
     for (int32_t v = 0; v < nv; ++v)
       V[3 * v] = m.vert_rest_x[r.vert_begin + v], V[3 * v + 1] = m.vert_rest_y[r.vert_begin + v],
-             V[3 * v + 2] = m.vert_rest_z[r.vert_begin + v];
+            V[3 * v + 2] = m.vert_rest_z[r.vert_begin + v];
     surf_f[o].assign(m.face_vert.begin() + 3 * r.face_begin, m.face_vert.begin() + 3 * r.face_end);
     for (int32_t& f : surf_f[o]) f -= r.vert_begin;
   }
@@ -360,7 +361,8 @@ void compile_solids(const SceneDesc& scene, Model& m) {
     (refined[o] ? thin_nodes : plain_nodes) += lattice[o].mesh.nnode();
   }
   if (plain_nodes + thin_nodes > kSceneThinNodes && thin_nodes > 0) {
-    const double scale = std::max(0.0, static_cast<double>(kSceneThinNodes - plain_nodes)) / static_cast<double>(thin_nodes);
+    const double scale =
+        std::max(0.0, static_cast<double>(kSceneThinNodes - plain_nodes)) / static_cast<double>(thin_nodes);
     for (int32_t o = 0; o < norg; ++o) {
       if (!refined[o]) continue;
       const OrganRange& r = m.organs[o];
@@ -449,8 +451,8 @@ void compile_solids(const SceneDesc& scene, Model& m) {
         for (int c = 0; c < 3; ++c) cg[3 * slot + c] += g[3 * i + c] / 6.0;
       }
     }
-    const double organ_mass = mat.total_mass_kg > 0 ? mat.total_mass_kg
-                                                     : mat.density_kg_m3 * std::fabs(enclosed_volume(V, F));
+    const double organ_mass =
+        mat.total_mass_kg > 0 ? mat.total_mass_kg : mat.density_kg_m3 * std::fabs(enclosed_volume(V, F));
     double msum = 0.0;
     for (double mi : b.mass) msum += mi;
     for (double& mi : b.mass) mi *= organ_mass / msum;
@@ -519,17 +521,16 @@ void compile_solids(const SceneDesc& scene, Model& m) {
 
 std::string solid_plan(const SolidBody& b) {
   char buf[400];
-  std::snprintf(buf, sizeof buf,
-                "lattice of %d nodes / %d tetrahedra (cell %.1f mm), corotational E = %g Pa, nu = %g, "
-                "Rayleigh beta = %.3g s (damping ratio %g at %.1f Hz), %d local/global iterations, %d anchored vertices",
-                b.nnode, b.ntet, 1e3 * b.spacing_m, b.young_modulus_pa, b.poisson_ratio, b.beta_s, b.damping_ratio,
-                b.omega1_rad_s / (2 * M_PI), b.iterations, b.nfixed);
+  std::snprintf(
+      buf, sizeof buf,
+      "lattice of %d nodes / %d tetrahedra (cell %.1f mm), corotational E = %g Pa, nu = %g, "
+      "Rayleigh beta = %.3g s (damping ratio %g at %.1f Hz), %d local/global iterations, %d anchored vertices",
+      b.nnode, b.ntet, 1e3 * b.spacing_m, b.young_modulus_pa, b.poisson_ratio, b.beta_s, b.damping_ratio,
+      b.omega1_rad_s / (2 * M_PI), b.iterations, b.nfixed);
   return buf;
 }
 
-bool solid_vertex(const Model& m, int32_t v) {
-  return !m.organ_solid.empty() && m.organ_solid[m.vert_organ[v]] >= 0;
-}
+bool solid_vertex(const Model& m, int32_t v) { return !m.organ_solid.empty() && m.organ_solid[m.vert_organ[v]] >= 0; }
 
 void init_solid_state(const Model& m, State& s) {
   size_t n = 0;
@@ -775,7 +776,8 @@ void keep_volume(const Model& m, const SolidBody& b, SolidWork& w) {
     }
   }
   for (int32_t p = 0; p < P; ++p)  // a piece the grasp holds entirely cannot change: no constraint
-    if (!(M(p, p) > 1e-12 * M.diagonal().cwiseAbs().maxCoeff())) M.row(p).setZero(), M.col(p).setZero(), M(p, p) = 1.0, rhs(p) = 0.0;
+    if (!(M(p, p) > 1e-12 * M.diagonal().cwiseAbs().maxCoeff()))
+      M.row(p).setZero(), M.col(p).setZero(), M(p, p) = 1.0, rhs(p) = 0.0;
   const SmallVec lambda = M.ldlt().solve(rhs);
   if (!lambda.allFinite()) return;
   double step2 = 0.0;
@@ -819,7 +821,8 @@ void solve_body(const Model& m, const SolidBody& b, SolidWork& w, State& s) {
     // local step: the constraint projections, summed into the right-hand side (column-major)
     for (int32_t i = 0; i < b.nnode; ++i)
       for (int c = 0; c < 3; ++c)
-        w.sol[c * b.nnode + i] = b.factor->base_rhs[c * b.nnode + i] + b.mass[i] * inv_h2 * w.s[3 * i + c] + w.fext[3 * i + c];
+        w.sol[c * b.nnode + i] =
+            b.factor->base_rhs[c * b.nnode + i] + b.mass[i] * inv_h2 * w.s[3 * i + c] + w.fext[3 * i + c];
     for (int32_t t = 0; t < b.ntet; ++t) {
       const Mat3 F = deformation(b, t, w.q.data());
       rotation_fit(F, &w.quat[4 * t], &w.rot[9 * t], kRotationIterations);
@@ -921,7 +924,8 @@ SolidStats solid_step(const Model& m, State& s, Work& work) {
         const double sc = l > 0 ? m.conn_rest[q] / l : 0.0;
         const double kd = m.conn_d[q] / m.dt_s;
         double f[3];
-        for (int k = 0; k < 3; ++k) f[k] = m.conn_k[q] * (po[k] + m.dt_s * uo[k] + sc * d[k]) + kd * (ps[k] + m.dt_s * uo[k]);
+        for (int k = 0; k < 3; ++k)
+          f[k] = m.conn_k[q] * (po[k] + m.dt_s * uo[k] + sc * d[k]) + kd * (ps[k] + m.dt_s * uo[k]);
         spread(b, self - r.vert_begin, f, w.fext);
       }
     }
@@ -973,7 +977,8 @@ SolidStats solid_step(const Model& m, State& s, Work& work) {
   }
   // The organs' solves, in parallel on the step's worker threads when there are any.
   SolveJob job{&m, &s, &work};
-  if (work.workers && work.workers->threads() > 1) work.workers->run(solve_job, &job);
+  if (work.workers && work.workers->threads() > 1)
+    work.workers->run(solve_job, &job);
   else
     for (size_t bi = 0; bi < m.solids.size(); ++bi)
       if (work.solid[bi].active) solve_body(m, m.solids[bi], work.solid[bi], s);
@@ -981,8 +986,10 @@ SolidStats solid_step(const Model& m, State& s, Work& work) {
     const SolidWork& w = work.solid[bi];
     if (!w.active) continue;
     st.max_speed2 = std::max(st.max_speed2, w.out_max_speed2);
-    if (!std::isfinite(w.out_checksum)) st.checksum = NAN;
-    else if (std::isfinite(st.checksum)) st.checksum += w.out_checksum;
+    if (!std::isfinite(w.out_checksum))
+      st.checksum = NAN;
+    else if (std::isfinite(st.checksum))
+      st.checksum += w.out_checksum;
     for (int c = 0; c < 3; ++c) reaction[c] += w.out_reaction[c];
   }
   if (st.reaction) tool.reaction_N = reaction;

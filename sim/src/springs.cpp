@@ -11,17 +11,15 @@ namespace {
 template <int P>
 void organ_springs(const Model& m, const OrganRange& r, const State& s, Work& w) {
   if (r.damping)
-    kernels::spring_forces<P, true>(r.spring_begin, r.spring_end, m.spring_a.data(),
-                                    m.spring_b.data(), m.spring_rest.data(), m.spring_k.data(),
-                                    m.spring_d.data(), r.elastica_a, r.elastica_cap, s.x.data(), s.y.data(),
-                                    s.z.data(), s.vx.data(), s.vy.data(), s.vz.data(),
-                                    w.half_bk.data(), w.fx.data(), w.fy.data(), w.fz.data());
+    kernels::spring_forces<P, true>(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(),
+                                    m.spring_rest.data(), m.spring_k.data(), m.spring_d.data(), r.elastica_a,
+                                    r.elastica_cap, s.x.data(), s.y.data(), s.z.data(), s.vx.data(), s.vy.data(),
+                                    s.vz.data(), w.half_bk.data(), w.fx.data(), w.fy.data(), w.fz.data());
   else
-    kernels::spring_forces<P, false>(r.spring_begin, r.spring_end, m.spring_a.data(),
-                                     m.spring_b.data(), m.spring_rest.data(), m.spring_k.data(),
-                                     m.spring_d.data(), r.elastica_a, r.elastica_cap, s.x.data(), s.y.data(),
-                                     s.z.data(), s.vx.data(), s.vy.data(), s.vz.data(),
-                                     w.half_bk.data(), w.fx.data(), w.fy.data(), w.fz.data());
+    kernels::spring_forces<P, false>(r.spring_begin, r.spring_end, m.spring_a.data(), m.spring_b.data(),
+                                     m.spring_rest.data(), m.spring_k.data(), m.spring_d.data(), r.elastica_a,
+                                     r.elastica_cap, s.x.data(), s.y.data(), s.z.data(), s.vx.data(), s.vy.data(),
+                                     s.vz.data(), w.half_bk.data(), w.fx.data(), w.fy.data(), w.fz.data());
 }
 
 // Springs whose blocks are assembled: ends, spring index (sp == nullptr: t itself), Hooke/elastica
@@ -39,9 +37,8 @@ struct BlockSprings {
 // ones share no vertex).
 // `slot`: which chunk scratch of Work::cg_tmp to use (the worker thread's index).
 template <int P>
-__attribute__((noinline)) void assemble_blocks(int32_t begin, int32_t end, const BlockSprings& S,
-                                               const double* hv, const State& s, Work& w, double h,
-                                               int slot) {
+__attribute__((noinline)) void assemble_blocks(int32_t begin, int32_t end, const BlockSprings& S, const double* hv,
+                                               const State& s, Work& w, double h, int slot) {
   const int32_t* __restrict sa = S.sa;
   const int32_t* __restrict sb = S.sb;
   const int32_t* __restrict sp = S.sp;
@@ -120,38 +117,54 @@ int spring_measure_kind(const OrganRange& r) {
 
 void organ_spring_forces(const Model& m, const OrganRange& r, const State& s, Work& w) {
   switch (spring_measure_kind(r)) {
-    case 0: organ_springs<0>(m, r, s, w); break;
-    case 1: organ_springs<1>(m, r, s, w); break;
-    case 2: organ_springs<2>(m, r, s, w); break;
-    default: organ_springs<3>(m, r, s, w); break;
+    case 0:
+      organ_springs<0>(m, r, s, w);
+      break;
+    case 1:
+      organ_springs<1>(m, r, s, w);
+      break;
+    case 2:
+      organ_springs<2>(m, r, s, w);
+      break;
+    default:
+      organ_springs<3>(m, r, s, w);
+      break;
   }
 }
 
 void connection_forces(const Model& m, const State& s, Work& w) {
   if (m.nconn == 0) return;
   // Connections are Hooke springs with damping; a sleeping organ's side still feels them.
-  kernels::spring_forces<0, true>(0, m.nconn, m.conn_a.data(), m.conn_b.data(),
-                                  m.conn_rest.data(), m.conn_k.data(), m.conn_d.data(), 1.0, 0.0,
-                                  s.x.data(), s.y.data(), s.z.data(), s.vx.data(), s.vy.data(),
-                                  s.vz.data(), nullptr, w.fx.data(), w.fy.data(), w.fz.data());
+  kernels::spring_forces<0, true>(0, m.nconn, m.conn_a.data(), m.conn_b.data(), m.conn_rest.data(), m.conn_k.data(),
+                                  m.conn_d.data(), 1.0, 0.0, s.x.data(), s.y.data(), s.z.data(), s.vx.data(),
+                                  s.vy.data(), s.vz.data(), nullptr, w.fx.data(), w.fy.data(), w.fz.data());
 }
 
 void organ_spring_blocks(const Model& m, const OrganRange& r, const State& s, Work& w, double h, int slot) {
   const double* d = r.damping ? m.spring_d.data() : nullptr;
   const double* hv = w.half_bk.data();
-  const BlockSprings B{w.cg_sa.data(), w.cg_sb.data(), w.cg_s.data(), m.spring_rest.data(), m.spring_k.data(),
-                       d, r.elastica_a, r.elastica_cap, w.jac.data()};
+  const BlockSprings B{w.cg_sa.data(), w.cg_sb.data(), w.cg_s.data(), m.spring_rest.data(), m.spring_k.data(), d,
+                       r.elastica_a,   r.elastica_cap, w.jac.data()};
   switch (spring_measure_kind(r)) {
-    case 0: assemble_blocks<0>(r.spring_begin, r.spring_end, B, hv, s, w, h, slot); break;
-    case 1: assemble_blocks<1>(r.spring_begin, r.spring_end, B, hv, s, w, h, slot); break;
-    case 2: assemble_blocks<2>(r.spring_begin, r.spring_end, B, hv, s, w, h, slot); break;
-    default: assemble_blocks<3>(r.spring_begin, r.spring_end, B, hv, s, w, h, slot); break;
+    case 0:
+      assemble_blocks<0>(r.spring_begin, r.spring_end, B, hv, s, w, h, slot);
+      break;
+    case 1:
+      assemble_blocks<1>(r.spring_begin, r.spring_end, B, hv, s, w, h, slot);
+      break;
+    case 2:
+      assemble_blocks<2>(r.spring_begin, r.spring_end, B, hv, s, w, h, slot);
+      break;
+    default:
+      assemble_blocks<3>(r.spring_begin, r.spring_end, B, hv, s, w, h, slot);
+      break;
   }
 }
 
 void connection_blocks(const Model& m, const State& s, Work& w, double h) {
-  const BlockSprings S{m.conn_a.data(), m.conn_b.data(), nullptr, m.conn_rest.data(), m.conn_k.data(),
-                       m.conn_d.data(), 1.0, 0.0, w.cjac.data()};
+  const BlockSprings S{m.conn_a.data(), m.conn_b.data(), nullptr, m.conn_rest.data(),
+                       m.conn_k.data(), m.conn_d.data(), 1.0,     0.0,
+                       w.cjac.data()};
   assemble_blocks<0>(0, m.nconn, S, nullptr, s, w, h, 0);
 }
 

@@ -20,7 +20,7 @@ State make_state(const Model& m) {
   for (size_t o = 0; o < m.organs.size(); ++o)  // rigid organs sleep for good (sleep.cpp)
     if (m.organs[o].model == ModelKind::rigid) s.organ_awake[o] = 0;
   s.organ_still_steps.assign(m.organs.size(), 0);
-  init_solid_state(m, s);                              // solid_step.cpp: lattice nodes at rest
+  init_solid_state(m, s);  // solid_step.cpp: lattice nodes at rest
   s.contact_let_go.assign(m.contact.on ? m.nvert : 0, 0);
   return s;
 }
@@ -50,8 +50,8 @@ void perturb(const Model& m, State& s, double amplitude_m, uint32_t seed) {
 Work make_work(const Model& m) {
   Work w;
   const size_t n = m.nvert;
-  for (auto* v : {&w.fx, &w.fy, &w.fz, &w.lap_x, &w.lap_y, &w.lap_z, &w.area2, &w.half_bk, &w.px,
-                  &w.py, &w.pz, &w.free_mask, &w.good_x, &w.good_y, &w.good_z})
+  for (auto* v : {&w.fx, &w.fy, &w.fz, &w.lap_x, &w.lap_y, &w.lap_z, &w.area2, &w.half_bk, &w.px, &w.py, &w.pz,
+                  &w.free_mask, &w.good_x, &w.good_y, &w.good_z})
     v->assign(n, 0.0);
   const int threads = std::min<int>(m.threads, static_cast<int>(m.organs.size()));
   // Implicit solver buffers only when a step can be implicit: asked for, or the guard's fallback.
@@ -124,32 +124,32 @@ Work make_work(const Model& m) {
 }
 
 StepReport step(const Model& m, State& s, Work& w) {
-  const FlushDenormals flush;                          // workers.hpp: no float denormal stalls
+  const FlushDenormals flush;  // workers.hpp: no float denormal stalls
   StepReport rep;
-  engine::begin_tool_step(m, s, w);                    // tool.cpp: free mask, attach targets
+  engine::begin_tool_step(m, s, w);  // tool.cpp: free mask, attach targets
 
-  int substeps = 1;                                    // guard.cpp: the integrator of this step
+  int substeps = 1;  // guard.cpp: the integrator of this step
   const Integrator eff = engine::step_integrator(m, s, substeps);
   engine::IntegrateStats st;
-  if (eff == Integrator::implicit) {                   // implicit.cpp: backward Euler + CG
+  if (eff == Integrator::implicit) {  // implicit.cpp: backward Euler + CG
     st = engine::implicit_step(m, s, w, m.dt_s);
     if (m.integrator != Integrator::implicit) {
       rep.status = StepStatus::implicit_fallback;
       rep.message = "guard: time step too large for the explicit integrator, solved implicitly";
     }
-  } else {                              // explicit.cpp: 000 Algorithm 1 or symplectic Euler
+  } else {  // explicit.cpp: 000 Algorithm 1 or symplectic Euler
     st = engine::explicit_step(m, s, w, eff == Integrator::verlet, substeps);
     if (substeps > 1) {
       rep.status = StepStatus::substepped;
       rep.message = "guard: time step above the stable estimate, split into sub-steps";
     }
   }
-  if (!m.solids.empty()) {                             // solid_step.cpp: the solid organs
+  if (!m.solids.empty()) {  // solid_step.cpp: the solid organs
     const SolidStats ss = solid_step(m, s, w);
     st.max_speed2 = std::max(st.max_speed2, ss.max_speed2);
     st.checksum += ss.checksum;
   }
-  rep.contacts = contact_pass(m, s, w);               // contact.cpp: organs do not pass through
+  rep.contacts = contact_pass(m, s, w);  // contact.cpp: organs do not pass through
   // Inside each integrator: forces.cpp (springs.cpp 000 eq 6, 000 eq 7; curvature.cpp 000 eq 2
   // for 000 eq 5; flexion.cpp), tool.cpp (force or hold), then constraints.cpp
   // (compensation.cpp; volume.cpp 003 eq 25 to 003 eq 30).
@@ -162,13 +162,12 @@ StepReport step(const Model& m, State& s, Work& w) {
   const bool restored = engine::guard_check(m, s, w, st, rep);  // guard.cpp: restore if runaway
   s.time_s += m.dt_s;
   ++s.step_count;
-  engine::guard_snapshot(m, s, w, restored);           // guard.cpp: the last good state
-  engine::update_sleep(m, s);                          // sleep.cpp: resting organs sleep
+  engine::guard_snapshot(m, s, w, restored);  // guard.cpp: the last good state
+  engine::update_sleep(m, s);                 // sleep.cpp: resting organs sleep
   return rep;
 }
 
-int64_t run_to_rest(const Model& m, State& s, Work& w, int64_t max_steps, double accel_tol,
-                    StepReport* last) {
+int64_t run_to_rest(const Model& m, State& s, Work& w, int64_t max_steps, double accel_tol, StepReport* last) {
   const bool was = w.measure_accel;
   w.measure_accel = true;
   int64_t k = 0;

@@ -39,11 +39,12 @@ void stiffness_times(const Model& m, const double* p, double* y) {
 
 }  // namespace
 
-Model compile(const std::vector<double>& V, const std::vector<int32_t>& F,
-              const std::vector<int32_t>& fixed, const Params& p) {
+Model compile(const std::vector<double>& V, const std::vector<int32_t>& F, const std::vector<int32_t>& fixed,
+              const Params& p) {
   if (V.empty() || F.empty() || V.size() % 3 || F.size() % 3)
     bad("mesh", "expected vertices (#V*3) and triangles (#F*3), got an empty or ragged mesh");
-  if (!(p.young_modulus_pa > 0) || !std::isfinite(p.young_modulus_pa)) bad("young_modulus_pa", "expected a positive number");
+  if (!(p.young_modulus_pa > 0) || !std::isfinite(p.young_modulus_pa))
+    bad("young_modulus_pa", "expected a positive number");
   if (!(p.poisson_ratio > -1.0 && p.poisson_ratio < 0.5)) bad("poisson_ratio", "expected a value in (-1, 0.5)");
   if (!(p.thickness_m > 0)) bad("thickness_m", "expected a positive number");
   if (p.total_mass_kg < 0 || !(p.density_kg_m3 > 0)) bad("mass", "expected total_mass_kg >= 0 and density_kg_m3 > 0");
@@ -57,7 +58,8 @@ Model compile(const std::vector<double>& V, const std::vector<int32_t>& F,
   for (double c : V)
     if (!std::isfinite(c)) bad("mesh", "non-finite vertex coordinate");
   for (int32_t v : F)
-    if (v < 0 || v >= m.nvert) bad("mesh", "face index " + std::to_string(v) + " outside [0, " + std::to_string(m.nvert) + ")");
+    if (v < 0 || v >= m.nvert)
+      bad("mesh", "face index " + std::to_string(v) + " outside [0, " + std::to_string(m.nvert) + ")");
   // Plane stress: lambda* = 2 lambda mu / (lambda + 2 mu) = E nu / (1 - nu^2), mu = E / (2 (1 + nu)).
   const double E = p.young_modulus_pa, nu = p.poisson_ratio;
   m.lame_mu = E / (2.0 * (1.0 + nu));
@@ -194,7 +196,7 @@ StepInfo step(const Model& m, State& s, Work& w, double h) {
   }
   // r = h (f_ext - K u - C v - h K v), C = alpha M + beta K (paper 002 eqs 16, 22).
   for (size_t k = 0; k < n; ++k) w.d[k] = s.x[k] - m.rest[k];
-  stiffness_times(m, w.d.data(), w.f.data());  // K u
+  stiffness_times(m, w.d.data(), w.f.data());   // K u
   stiffness_times(m, s.v.data(), w.kv.data());  // K v
   for (size_t k = 0; k < n; ++k) {
     const double mass = m.vert_mass[k / 3];

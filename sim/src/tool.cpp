@@ -13,8 +13,7 @@ void begin_tool_step(const Model& m, const State& s, Work& w) {
 }
 
 void end_tool_step(State& s) {
-  if (s.tool.mode == ToolMode::attach && s.tool.attach_progress < s.tool.attach_iterations)
-    ++s.tool.attach_progress;
+  if (s.tool.mode == ToolMode::attach && s.tool.attach_progress < s.tool.attach_iterations) ++s.tool.attach_progress;
 }
 
 // Internal forces of the organs that hold a tool vertex, and of the connections; other organs'
@@ -66,8 +65,7 @@ void attach_targets(const Model& m, const State& s, Work& w, double frac) {
   const double p1 = std::min(1.0, static_cast<double>(t.attach_progress + 1) / t.attach_iterations);
   const double p = p0 + (p1 - p0) * frac;
   for (size_t q = 0; q < t.verts.size(); ++q)
-    for (int c = 0; c < 3; ++c)
-      w.tool_target[3 * q + c] = t.anchor[3 * q + c] + p * t.offset_m[c] + t.contact_shift[c];
+    for (int c = 0; c < 3; ++c) w.tool_target[3 * q + c] = t.anchor[3 * q + c] + p * t.offset_m[c] + t.contact_shift[c];
 }
 
 // Held vertices get the velocity that carries them to their target over h; with
@@ -119,14 +117,13 @@ void set_tool(const Model& m, State& s, const std::vector<int32_t>& verts, ToolM
 }
 }  // namespace
 
-void pull_force(const Model& m, State& s, const std::vector<int32_t>& verts,
-                const std::array<double, 3>& force_N) {
+void pull_force(const Model& m, State& s, const std::vector<int32_t>& verts, const std::array<double, 3>& force_N) {
   set_tool(m, s, verts, ToolMode::force);
   s.tool.force_N = force_N;
 }
 
-void attach(const Model& m, State& s, const std::vector<int32_t>& verts,
-            const std::array<double, 3>& offset_m, int iterations) {
+void attach(const Model& m, State& s, const std::vector<int32_t>& verts, const std::array<double, 3>& offset_m,
+            int iterations) {
   set_tool(m, s, verts, ToolMode::attach);
   s.tool.offset_m = offset_m;
   s.tool.attach_iterations = std::max(1, iterations);

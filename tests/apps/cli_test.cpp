@@ -20,9 +20,8 @@ using softatlas::test::Result;
 struct Scratch {
   fs::path dir;
   Scratch() {
-    dir = fs::temp_directory_path() /
-          ("softatlas-cli-" + std::to_string(::getpid()) + "-" +
-           ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir = fs::temp_directory_path() / ("softatlas-cli-" + std::to_string(::getpid()) + "-" +
+                                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir);
     fs::create_directories(dir);
   }
@@ -111,9 +110,7 @@ TEST(SoftatlasCli, BadInputExits1WithOneLine) {
   EXPECT_FALSE(fs::exists(tmp("set")));
 #endif
 #ifdef SOFTATLAS_HAVE_APP
-  {
-    std::ofstream(tmp("bad.yaml")) << "lesson: [unclosed\n";
-  }
+  { std::ofstream(tmp("bad.yaml")) << "lesson: [unclosed\n"; }
   expect_bad_input(tmp, {"lesson", "check", tmp("bad.yaml")}, "YAML syntax", tmp("bad.yaml") + ":2:");
 #endif
 }
@@ -126,8 +123,8 @@ TEST(SoftatlasCli, SuccessExits0) {
   r = run(tmp, {"--help"});
   EXPECT_EQ(r.rc, 0);
   EXPECT_NE(r.out.find("usage: softatlas"), std::string::npos);
-  for (const std::vector<std::string>& help : {std::vector<std::string>{"sim", "demo", "--help"},
-                                              {"bench", "restore", "--help"}, {"demo", "--help"}}) {
+  for (const std::vector<std::string>& help :
+       {std::vector<std::string>{"sim", "demo", "--help"}, {"bench", "restore", "--help"}, {"demo", "--help"}}) {
     r = run(tmp, help);
     EXPECT_EQ(r.rc, 0) << help[0] << " " << help[1];
     EXPECT_NE(r.out.find("Usage: softatlas " + help[0]), std::string::npos) << r.out;
@@ -152,7 +149,7 @@ TEST(SoftatlasCli, SuccessExits0) {
 #endif
 #ifdef SOFTATLAS_HAVE_APP
   r = run(tmp, {"lesson", "check", data("lessons/liver_mobility.yaml"), "--device",
-                      data("lessons/scripts/liver_mobility.pass.yaml")});
+                data("lessons/scripts/liver_mobility.pass.yaml")});
   EXPECT_EQ(r.rc, 0) << r.err;
   EXPECT_NE(r.out.find(": ok ("), std::string::npos) << r.out;
 #endif

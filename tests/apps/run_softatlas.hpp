@@ -14,8 +14,8 @@
 namespace softatlas::test {
 
 struct Result {
-  int rc = -1;            // exit status, or 128 + signal
-  std::string out, err;   // what it printed
+  int rc = -1;           // exit status, or 128 + signal
+  std::string out, err;  // what it printed
 };
 
 inline std::string slurp(const std::filesystem::path& p) {

@@ -45,9 +45,8 @@ struct Scratch {
   fs::path dir, mnt;
   bool mounted = false;
   Scratch() {
-    dir = fs::temp_directory_path() /
-          ("softatlas-faults-" + std::to_string(::getpid()) + "-" +
-           ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir = fs::temp_directory_path() / ("softatlas-faults-" + std::to_string(::getpid()) + "-" +
+                                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(dir);
     fs::create_directories(dir / "mnt");
     mnt = dir / "mnt";
@@ -86,14 +85,15 @@ std::vector<Writer> writers() {
       {"bench accuracy", {"bench", "accuracy", "--grid", "tiny", "--no-paper", "--no-fit", "--out"}},
   };
 #ifdef SOFTATLAS_HAVE_PIPELINE
-  w.push_back({"build", {"build", data("sample/ct_heart_crop.nii.gz"), "--labels",
-                         "heart=" + data("sample/heart_on_ct_heart_crop_grid.nii.gz"), "-q", "-o"}});
+  w.push_back({"build",
+               {"build", data("sample/ct_heart_crop.nii.gz"), "--labels",
+                "heart=" + data("sample/heart_on_ct_heart_crop_grid.nii.gz"), "-q", "-o"}});
   w.push_back({"export", {"export", data("atlas"), "-o"}});
 #endif
 #ifdef SOFTATLAS_HAVE_APP
-  w.push_back({"lesson run", {"lesson", "run", data("lessons/liver_mobility.yaml"), "--device",
-                              data("lessons/scripts/liver_mobility.pass.yaml"), "--width", "320", "--height", "180",
-                              "--out"}});
+  w.push_back({"lesson run",
+               {"lesson", "run", data("lessons/liver_mobility.yaml"), "--device",
+                data("lessons/scripts/liver_mobility.pass.yaml"), "--width", "320", "--height", "180", "--out"}});
 #endif
   return w;
 }

@@ -44,8 +44,10 @@ TEST(Cli, LessonCheck) {
                       test::lessons_dir() + "/scripts/organ_quiz.pass.yaml"}),
             1);
   const std::string mismatch = testing::internal::GetCapturedStderr();
-  EXPECT_NE(mismatch.find("organ_quiz.pass.yaml:6:5: task 1 is 'pick' but the lesson's task 1"), std::string::npos) << mismatch;
-  EXPECT_NE(mismatch.find("organ_quiz.pass.yaml:7:5: task 2 is 'pick' but the lesson's task 2"), std::string::npos) << mismatch;
+  EXPECT_NE(mismatch.find("organ_quiz.pass.yaml:6:5: task 1 is 'pick' but the lesson's task 1"), std::string::npos)
+      << mismatch;
+  EXPECT_NE(mismatch.find("organ_quiz.pass.yaml:7:5: task 2 is 'pick' but the lesson's task 2"), std::string::npos)
+      << mismatch;
   // A bad lesson: all its errors in one run, in file order, one per line.
   const std::string bad = std::string(SOFTATLAS_SOURCE_DIR) + "/tests/atlas_app/bad_lessons/schema/bad_values.yaml";
   testing::internal::CaptureStderr();

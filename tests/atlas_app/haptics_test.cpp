@@ -92,13 +92,16 @@ TEST(Haptics, ScriptedPullFeedbackIsTheCoresReactionForce) {
   for (int k = 0; k < 300; ++k) {
     const double t = (k + 1) * dt;
     const ToolCommand c = device.read(t);
-    if (k == 0) sim::attach(scene.model, scene.state, verts, c.offset_m, 1);
-    else sim::move_attachment(scene.state, c.offset_m);
+    if (k == 0)
+      sim::attach(scene.model, scene.state, verts, c.offset_m, 1);
+    else
+      sim::move_attachment(scene.state, c.offset_m);
     sim::step(scene.model, scene.state, scene.work);
     reaction = sim::tool_reaction(scene.state);
     device.write_force(shaper.shape(reaction, true, t));
     if (t > 0.03 && norm(reaction) < 4.0)
-      for (int i = 0; i < 3; ++i) max_mismatch = std::max(max_mismatch, std::abs(device.last_sent_N()[i] - reaction[i]));
+      for (int i = 0; i < 3; ++i)
+        max_mismatch = std::max(max_mismatch, std::abs(device.last_sent_N()[i] - reaction[i]));
   }
   EXPECT_LT(max_mismatch, 1e-12);
   EXPECT_NEAR(scene.mean_displacement_mm(verts), 10.0, 0.5);
@@ -121,7 +124,7 @@ TEST(Haptics, LoopRunsNearOneKilohertzAndKeepsTheLastForce) {
   EXPECT_LT(cmd.offset_m[2], 0.0);
   loop.stop();
   const HapticStats s = loop.stats();
-  EXPECT_GT(s.cycles, 250);   // 400 ms at 1 kHz, with slack for a loaded 2-core machine
+  EXPECT_GT(s.cycles, 250);  // 400 ms at 1 kHz, with slack for a loaded 2-core machine
   EXPECT_LT(s.cycles, 450);
   EXPECT_NEAR(s.period_us_p50, 1000.0, 250.0);
   EXPECT_NEAR(device.last_sent_N()[2], 1.0, 1e-12);  // clamped, and never stalled to zero

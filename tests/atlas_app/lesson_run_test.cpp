@@ -26,7 +26,8 @@ TEST_P(LessonRun, PlaysHeadlessAndReports) {
   const Case c = GetParam();
   const std::string out = test::scratch(std::string(c.lesson) + "_" + c.script);
   const Lesson lesson = load_lesson(test::lessons_dir() + "/" + c.lesson + ".yaml");
-  const DeviceScript script = load_device_script(test::lessons_dir() + "/scripts/" + c.lesson + "." + c.script + ".yaml");
+  const DeviceScript script =
+      load_device_script(test::lessons_dir() + "/scripts/" + c.lesson + "." + c.script + ".yaml");
   RunOptions opt;
   opt.width = 320;
   opt.height = 180;
@@ -51,8 +52,6 @@ TEST_P(LessonRun, PlaysHeadlessAndReports) {
   EXPECT_EQ(j.at("score").at("tasks").get<int>(), lesson.task_count());
   EXPECT_EQ(j.at("score").at("passed").get<int>() == lesson.task_count(), c.passes);
 }
-
-
 
 // A lesson and device script with 100,000-character lines (the title, what the lesson says, a
 // question and its answer) play to the end: overlays cut their text (overlay_text), an ImGui draw
@@ -85,8 +84,8 @@ TEST(LessonRunLongText, LinesOfAnyLengthPlay) {
   RunOptions opt;
   opt.width = 320;
   opt.height = 180;
-  const LessonReport r = run_lesson(load_lesson(dir + "/long.yaml"), load_device_script(dir + "/long.pass.yaml"),
-                                    dir + "/out", opt);
+  const LessonReport r =
+      run_lesson(load_lesson(dir + "/long.yaml"), load_device_script(dir + "/long.pass.yaml"), dir + "/out", opt);
   EXPECT_TRUE(r.passed);
   EXPECT_TRUE(std::filesystem::exists(dir + "/out/end.png"));
 }
@@ -102,22 +101,20 @@ TEST(LessonRunLongText, OverlayTextIsCutAtACharacterBoundary) {
 
 INSTANTIATE_TEST_SUITE_P(
     Shipped, LessonRun,
-    ::testing::Values(Case{"liver_mobility", "pass", true, "reached"},
-                      Case{"liver_mobility", "fail", false, "pulled too hard"},
-                      Case{"organ_quiz", "pass", true, "picked pancreas"},
-                      Case{"organ_quiz", "fail", false, "picked liver, expected pancreas"},
-                      Case{"kidney_anchor", "pass", true, "reached"},
-                      Case{"kidney_anchor", "fail", false, "pulled too little"},
-                      Case{"sectional_anatomy", "pass", true, "picked kidney_right"},
-                      Case{"sectional_anatomy", "fail", false, "answered Liver, the answer is Spleen"},
-                      Case{"kidney_sections", "pass", true, "answered Right kidney"},
-                      Case{"kidney_sections", "fail", false, "picked kidney_right, expected kidney_left"},
-                      Case{"spleen_pull", "pass", true, "reached"},
-                      Case{"spleen_pull", "fail", false, "pulled too hard"}),
+    ::testing::Values(
+        Case{"liver_mobility", "pass", true, "reached"}, Case{"liver_mobility", "fail", false, "pulled too hard"},
+        Case{"organ_quiz", "pass", true, "picked pancreas"},
+        Case{"organ_quiz", "fail", false, "picked liver, expected pancreas"},
+        Case{"kidney_anchor", "pass", true, "reached"}, Case{"kidney_anchor", "fail", false, "pulled too little"},
+        Case{"sectional_anatomy", "pass", true, "picked kidney_right"},
+        Case{"sectional_anatomy", "fail", false, "answered Liver, the answer is Spleen"},
+        Case{"kidney_sections", "pass", true, "answered Right kidney"},
+        Case{"kidney_sections", "fail", false, "picked kidney_right, expected kidney_left"},
+        Case{"spleen_pull", "pass", true, "reached"}, Case{"spleen_pull", "fail", false, "pulled too hard"}),
     [](const ::testing::TestParamInfo<Case>& i) { return std::string(i.param.lesson) + "_" + i.param.script; });
 
-const char* kCovered[] = {"liver_mobility", "organ_quiz", "kidney_anchor", "sectional_anatomy", "kidney_sections",
-                          "spleen_pull"};
+const char* kCovered[] = {"liver_mobility",    "organ_quiz",      "kidney_anchor",
+                          "sectional_anatomy", "kidney_sections", "spleen_pull"};
 
 TEST(LessonRunCoverage, EveryShippedLessonHasPassAndFailCases) {
   int n = 0;
@@ -129,7 +126,8 @@ TEST(LessonRunCoverage, EveryShippedLessonHasPassAndFailCases) {
     for (const char* c : kCovered) covered = covered || name == c;
     EXPECT_TRUE(covered) << name << " has no LessonRun case";
     for (const char* k : {"pass", "fail"})
-      EXPECT_TRUE(std::filesystem::exists(test::lessons_dir() + "/scripts/" + name + "." + k + ".yaml")) << name << "." << k;
+      EXPECT_TRUE(std::filesystem::exists(test::lessons_dir() + "/scripts/" + name + "." + k + ".yaml"))
+          << name << "." << k;
   }
   EXPECT_GE(n, 6);
 }

@@ -17,16 +17,18 @@ namespace {
 
 // A valid lesson whose organ set is the demo atlas (absolute path).
 std::string valid_lesson() {
-  return "lesson: Test lesson\n"                                  // line 1
-         "organ_set: " + test::atlas_dir() + "\n"                  // 2
-         "scene:\n"                                               // 3
-         "  organs: [liver]\n"                                    // 4
-         "  context: [kidney_left]\n"                             // 5
-         "  physics: {dt_s: 0.001}\n"                             // 6
-         "steps:\n"                                               // 7
-         "  - say: hello\n"                                       // 8
+  return "lesson: Test lesson\n"  // line 1
+         "organ_set: " +
+         test::atlas_dir() +
+         "\n"                                                                                    // 2
+         "scene:\n"                                                                              // 3
+         "  organs: [liver]\n"                                                                   // 4
+         "  context: [kidney_left]\n"                                                            // 5
+         "  physics: {dt_s: 0.001}\n"                                                            // 6
+         "steps:\n"                                                                              // 7
+         "  - say: hello\n"                                                                      // 8
          "  - pull: {organ: liver, region: inferior, min_displacement_mm: 5, max_force_N: 1}\n"  // 9
-         "  - pick: {organ: kidney_left}\n";                      // 10
+         "  - pick: {organ: kidney_left}\n";                                                     // 10
 }
 
 std::string write(const std::string& name, const std::string& text) {
@@ -69,7 +71,8 @@ TEST(Lesson, ValidLessonLoads) {
 // A pull may name a region of its organ (data/atlas's liver has the HRA sub-meshes' regions):
 // it becomes that region's landmark; a name the organ does not have lists the ones it has.
 TEST(Lesson, NamedRegionsBecomeLandmarks) {
-  const Lesson l = load_lesson(write("named_region", replace(valid_lesson(), "region: inferior", "region: gastric_impression")));
+  const Lesson l =
+      load_lesson(write("named_region", replace(valid_lesson(), "region: inferior", "region: gastric_impression")));
   ASSERT_EQ(l.steps[1].kind, StepKind::pull);
   EXPECT_EQ(l.steps[1].pull.region, "gastric_impression");
   ASSERT_TRUE(l.steps[1].pull.has_landmark);
@@ -90,10 +93,12 @@ TEST(Lesson, UnknownKey) {
 TEST(Lesson, WrongType) {
   expect_error("wrong_type", replace(valid_lesson(), "max_force_N: 1}", "max_force_N: strong}"), 9, 81,
                "'max_force_N' must be a number");
-  expect_error("wrong_steps", replace(replace(replace(valid_lesson(), "  - say: hello\n", ""),
-                                              "  - pull: {organ: liver, region: inferior, min_displacement_mm: 5, max_force_N: 1}\n", ""),
-                                      "  - pick: {organ: kidney_left}\n", "  hello: 3\n"),
-               8, 3, "'steps' must be a non-empty list");
+  expect_error(
+      "wrong_steps",
+      replace(replace(replace(valid_lesson(), "  - say: hello\n", ""),
+                      "  - pull: {organ: liver, region: inferior, min_displacement_mm: 5, max_force_N: 1}\n", ""),
+              "  - pick: {organ: kidney_left}\n", "  hello: 3\n"),
+      8, 3, "'steps' must be a non-empty list");
 }
 
 TEST(Lesson, AbsentOrganFailsWithAClearMessage) {
@@ -109,16 +114,17 @@ TEST(Lesson, OutOfRangeValues) {
   expect_error("negative_force", replace(valid_lesson(), "max_force_N: 1}", "max_force_N: -2}"), 9, 81,
                "'max_force_N' must be in [0.001, 50], got -2");
   expect_error("dt", replace(valid_lesson(), "dt_s: 0.001", "dt_s: 0.5"), 6, 19, "'dt_s' must be in");
-  expect_error("region", replace(valid_lesson(), "region: inferior", "region: middle"), 9, 34, "unknown region 'middle'");
+  expect_error("region", replace(valid_lesson(), "region: inferior", "region: middle"), 9, 34,
+               "unknown region 'middle'");
 }
 
 TEST(Lesson, MissingRequiredKeyAndBadStructure) {
   expect_error("missing_min", replace(valid_lesson(), "min_displacement_mm: 5, ", ""), 9, 11,
                "pull needs 'min_displacement_mm'");
-  expect_error("two_actions", replace(valid_lesson(), "  - say: hello\n", "  - say: hello\n    wait: {seconds: 1}\n"), 8, 5,
-               "exactly one action");
-  expect_error("missing_set", replace(valid_lesson(), "organ_set: " + test::atlas_dir(), "organ_set: /no/such/set"), 2, 12,
-               "does not exist");
+  expect_error("two_actions", replace(valid_lesson(), "  - say: hello\n", "  - say: hello\n    wait: {seconds: 1}\n"),
+               8, 5, "exactly one action");
+  expect_error("missing_set", replace(valid_lesson(), "organ_set: " + test::atlas_dir(), "organ_set: /no/such/set"), 2,
+               12, "does not exist");
 }
 
 TEST(Lesson, YamlSyntaxErrorHasLineAndColumn) {
@@ -157,7 +163,8 @@ TEST(Lesson, BadLessonsReportEveryErrorInFileOrder) {
           const size_t sp = want.find(' ');
           const std::string at = path + ":" + want.substr(0, sp) + ": ";
           EXPECT_EQ(got[i].rfind(at, 0), 0u) << "expected at " << at << "\n got " << got[i];
-          EXPECT_NE(got[i].find(want.substr(sp + 1)), std::string::npos) << "expected '" << want << "'\n got " << got[i];
+          EXPECT_NE(got[i].find(want.substr(sp + 1)), std::string::npos)
+              << "expected '" << want << "'\n got " << got[i];
         }
       } catch (const InputError& e) {
         ADD_FAILURE() << path << ": not a collected error: " << e.what();
@@ -172,16 +179,17 @@ TEST(Lesson, StrictYaml) {
                "'lesson' must be text, got the number 42");
   expect_error("quoted_number", replace(valid_lesson(), "dt_s: 0.001", "dt_s: \"0.001\""), 6, 19,
                "'dt_s' must be a number, got the text");
-  expect_error("duplicate", replace(valid_lesson(), "pick: {organ: kidney_left}", "pick: {organ: kidney_left, organ: liver}"),
-               10, 32, "duplicate key 'organ' in pick (first given on line 10)");
+  expect_error("duplicate",
+               replace(valid_lesson(), "pick: {organ: kidney_left}", "pick: {organ: kidney_left, organ: liver}"), 10,
+               32, "duplicate key 'organ' in pick (first given on line 10)");
   // An unterminated quote is reported where it opens, not where yaml-cpp stops.
   expect_error("unterminated", replace(valid_lesson(), "say: hello", "say: \"hello"), 8, 10, "unterminated quote");
   // Quotes inside words, escaped quotes and block scalars are fine.
   const Lesson ok = load_lesson(write("quotes_ok", replace(valid_lesson(), "  - say: hello\n",
-                                                             "  - say: the patient's \"right\"\n"
-                                                             "  - say: 'it''s \"fine\"'\n"
-                                                             "  - say: \"a \\\" b\"\n"
-                                                             "  - say: >\n      a long \"text\n      over lines\n")));
+                                                           "  - say: the patient's \"right\"\n"
+                                                           "  - say: 'it''s \"fine\"'\n"
+                                                           "  - say: \"a \\\" b\"\n"
+                                                           "  - say: >\n      a long \"text\n      over lines\n")));
   ASSERT_EQ(ok.steps.size(), 6u);
   EXPECT_EQ(ok.steps[0].text, "the patient's \"right\"");
   EXPECT_EQ(ok.steps[1].text, "it's \"fine\"");
@@ -189,9 +197,9 @@ TEST(Lesson, StrictYaml) {
 }
 
 TEST(Lesson, QuestionAndSliceSteps) {
-  const Lesson l = load_lesson(write("question", valid_lesson() +
-                                                     "  - question: {ask: \"Which?\", choices: [Liver, Stomach], answer: Stomach}\n"
-                                                     "  - slice: {plane: coronal, at_mm: 120}\n"));
+  const Lesson l = load_lesson(
+      write("question", valid_lesson() + "  - question: {ask: \"Which?\", choices: [Liver, Stomach], answer: Stomach}\n"
+                                         "  - slice: {plane: coronal, at_mm: 120}\n"));
   ASSERT_EQ(l.steps.size(), 5u);
   EXPECT_EQ(l.steps[3].kind, StepKind::question);
   EXPECT_EQ(l.steps[3].question.answer, 1);
@@ -203,8 +211,8 @@ TEST(Lesson, QuestionAndSliceSteps) {
 }
 
 TEST(Lesson, ShippedLessonsAndScriptsValidate) {
-  for (const std::string name : {"liver_mobility", "organ_quiz", "kidney_anchor", "sectional_anatomy", "kidney_sections",
-                                 "spleen_pull"}) {
+  for (const std::string name :
+       {"liver_mobility", "organ_quiz", "kidney_anchor", "sectional_anatomy", "kidney_sections", "spleen_pull"}) {
     const Lesson l = load_lesson(test::lessons_dir() + "/" + name + ".yaml");
     for (const std::string kind : {"pass", "fail"}) {
       const DeviceScript s = load_device_script(test::lessons_dir() + "/scripts/" + name + "." + kind + ".yaml");
@@ -237,8 +245,9 @@ TEST(DeviceScript, ErrorsPointAtTheNode) {
   EXPECT_THROW(check_script_matches(wrong, l), InputError);
   // Every mismatch, in the script's order, each naming both tasks.
   const std::string path = dir + "/mismatch.yaml";
-  std::ofstream(path) << "device: scripted\ntasks:\n  - wait: {}\n  - pull: {timeline: [{t_s: 0, offset_mm: [0, 0, 0]}]}\n"
-                         "  - pick: {click_mm: [0, 0, 0]}\n";
+  std::ofstream(path)
+      << "device: scripted\ntasks:\n  - wait: {}\n  - pull: {timeline: [{t_s: 0, offset_mm: [0, 0, 0]}]}\n"
+         "  - pick: {click_mm: [0, 0, 0]}\n";
   try {
     check_script_matches(load_device_script(path), l);
     FAIL();

@@ -31,7 +31,8 @@ Brute brute_force(const std::vector<std::vector<float>>& P, const std::vector<st
       const float t = n.dot(a - o) / denom;
       if (t <= 0 || t >= best.t) continue;
       const Eigen::Vector3f p = o + t * d;
-      if ((b - a).cross(p - a).dot(n) < 0 || (c - b).cross(p - b).dot(n) < 0 || (a - c).cross(p - c).dot(n) < 0) continue;
+      if ((b - a).cross(p - a).dot(n) < 0 || (c - b).cross(p - b).dot(n) < 0 || (a - c).cross(p - c).dot(n) < 0)
+        continue;
       best = {static_cast<int>(m), t};
     }
   return best;
@@ -55,7 +56,10 @@ TEST(Picking, KnownRaysHitTheRightOrganAndAgreeWithBruteForce) {
   const Eigen::Vector3f back(0, -1, 0);
   // Known anatomy: from the front (+y) the liver is the first organ at its centroid; from behind
   // (-y) the kidneys are (they lie on the posterior wall).
-  struct Case { const char* through; float side; };
+  struct Case {
+    const char* through;
+    float side;
+  };
   for (const Case c : {Case{"liver", 1.0f}, Case{"kidney_left", -1.0f}, Case{"kidney_right", -1.0f}}) {
     const auto& V = set.find(c.through)->mesh.vertices;
     Eigen::Vector3f centroid(0, 0, 0);

@@ -168,7 +168,8 @@ TEST(Renderer, LabelAnchorFollowsTheSliceAndVanishesWithTheOrgan) {
   Viewer viewer(*ctx, scene);
   const auto& V = set.find("liver")->mesh.vertices;
   float zlo = 1e9f, zhi = -1e9f;
-  for (size_t i = 2; i < V.size(); i += 3) zlo = std::min(zlo, static_cast<float>(V[i])), zhi = std::max(zhi, static_cast<float>(V[i]));
+  for (size_t i = 2; i < V.size(); i += 3)
+    zlo = std::min(zlo, static_cast<float>(V[i])), zhi = std::max(zhi, static_cast<float>(V[i]));
   Eigen::Vector3f whole, kept;
   ASSERT_TRUE(viewer.label_anchor(0, whole));
   const float zm = 0.5f * (zlo + zhi);

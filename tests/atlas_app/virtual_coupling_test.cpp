@@ -197,7 +197,8 @@ TEST(VirtualCoupling, ReplayedPullGivesTheSameForceEveryRunWithoutJumps) {
   for (size_t k = 0; k < a.force.size(); ++k) {
     peak = std::max(peak, norm(a.force[k]));
     if (k > 0 && a.contact[k] && a.contact[k - 1]) {
-      const Vec3d d{a.force[k][0] - a.force[k - 1][0], a.force[k][1] - a.force[k - 1][1], a.force[k][2] - a.force[k - 1][2]};
+      const Vec3d d{a.force[k][0] - a.force[k - 1][0], a.force[k][1] - a.force[k - 1][1],
+                    a.force[k][2] - a.force[k - 1][2]};
       jump = std::max(jump, norm(d));
     }
   }
@@ -237,7 +238,8 @@ TEST(VirtualCoupling, SolidPullIsSmoothAtEveryPhysicsRate) {
     for (size_t k = 0; k < a.force.size(); ++k) {
       peak = std::max(peak, norm(a.force[k]));
       if (k > 0 && a.contact[k] && a.contact[k - 1]) {
-        const Vec3d d{a.force[k][0] - a.force[k - 1][0], a.force[k][1] - a.force[k - 1][1], a.force[k][2] - a.force[k - 1][2]};
+        const Vec3d d{a.force[k][0] - a.force[k - 1][0], a.force[k][1] - a.force[k - 1][1],
+                      a.force[k][2] - a.force[k - 1][2]};
         if (norm(d) > jump) jump = norm(d), at = k;
       }
     }
@@ -281,7 +283,7 @@ TEST(VirtualCoupling, ProbePressedIntoTheLiverPushesBackMoreTheDeeperItGoes) {
   CouplingPhysics physics(scene.model);
   LocalModel m;
   ASSERT_TRUE(free_probe_at_liver_front(scene, physics, m));
-  ASSERT_FALSE(m.valid);  // not touching yet
+  ASSERT_FALSE(m.valid);               // not touching yet
   EXPECT_LT(norm(m.surface_m), 1e-4);  // the vertex itself (it barely moved in one step)
   const Vec3d n = m.normal;
   ASSERT_NEAR(norm(n), 1.0, 1e-9);
@@ -321,10 +323,11 @@ TEST(VirtualCoupling, ProbePressedIntoTheLiverPushesBackMoreTheDeeperItGoes) {
     const double kc = cp.stiffness_N_m;
     const double expected = nv.dot(kc * K * (kc * Eigen::Matrix3d::Identity() + K).inverse() * (depth * nv));
     EXPECT_NEAR(push, expected, 0.01 * push);
-    const Vec3d rel{probe.proxy()[0] - m.surface_m[0], probe.proxy()[1] - m.surface_m[1], probe.proxy()[2] - m.surface_m[2]};
+    const Vec3d rel{probe.proxy()[0] - m.surface_m[0], probe.proxy()[1] - m.surface_m[1],
+                    probe.proxy()[2] - m.surface_m[2]};
     const double proxy_depth = -dot(rel, n);
-    EXPECT_GT(proxy_depth, 0.0);        // the surface gives way under the proxy...
-    EXPECT_LT(proxy_depth, depth);      // ...but the proxy stays on it, above the tip
+    EXPECT_GT(proxy_depth, 0.0);    // the surface gives way under the proxy...
+    EXPECT_LT(proxy_depth, depth);  // ...but the proxy stays on it, above the tip
     last = push;
   }
   // Back out above the proxy: the contact ends, the force is zero, the next touch is new.
@@ -386,7 +389,8 @@ TEST(VirtualCoupling, ProbePressedIntoTheSolidLiverPushesBackMoreTheDeeperItGoes
       ASSERT_TRUE(cmd.contact) << "in contact at " << k / 300 << " mm";
       const double push = dot(f, n);
       EXPECT_GT(push, last + 1e-3) << "deeper pushes back more, at " << k / 300 << " mm";
-      const Vec3d rel{cmd.proxy_m[0] - cmd.offset_m[0], cmd.proxy_m[1] - cmd.offset_m[1], cmd.proxy_m[2] - cmd.offset_m[2]};
+      const Vec3d rel{cmd.proxy_m[0] - cmd.offset_m[0], cmd.proxy_m[1] - cmd.offset_m[1],
+                      cmd.proxy_m[2] - cmd.offset_m[2]};
       EXPECT_GT(dot(rel, n), 0.0) << "the proxy stays outside the tip";
       last = push;
     }

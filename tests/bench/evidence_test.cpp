@@ -69,7 +69,8 @@ TEST(Evidence, DegradedMeshesHaveSliversShortEdgesAndFlippedTriangles) {
     for (int k = 0; k < 3; ++k) {
       const double* a = &s.V[3 * s.F[3 * i + k]];
       const double* b = &s.V[3 * s.F[3 * i + (k + 1) % 3]];
-      shortest = std::min(shortest, std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2])));
+      shortest = std::min(shortest, std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                                              (a[2] - b[2]) * (a[2] - b[2])));
     }
   EXPECT_LT(shortest, 1e-7);
 }
@@ -115,8 +116,8 @@ TEST(Evidence, StabilityTinyGridMeetsTheContract) {
 
 TEST(Evidence, AccuracyTinyGridMeetsTheContract) {
   const std::string dir = out_dir("accuracy");
-  ASSERT_EQ(ev::cli_main({"bench", "accuracy", "--grid", "tiny", "--no-paper", "--no-fit", "--out", dir,
-                          "--data", SOFTATLAS_SHARED_DATA}),
+  ASSERT_EQ(ev::cli_main({"bench", "accuracy", "--grid", "tiny", "--no-paper", "--no-fit", "--out", dir, "--data",
+                          SOFTATLAS_SHARED_DATA}),
             0);
   const json r = read_json(dir + "/results.json");
   ASSERT_FALSE(r["runs"].empty());
@@ -152,7 +153,7 @@ TEST(Evidence, AccuracyTinyGridMeetsTheContract) {
 
 TEST(Evidence, BadInputIsOneClearError) {
   EXPECT_EQ(ev::cli_main({"bench", "accuracy", "--grid", "tiny"}), 2);  // no --out: a usage error
-  EXPECT_THROW(ev::cli_main({"bench", "accuracy", "--grid", "tiny", "--no-paper", "--no-fit", "--out",
-                             out_dir("bad"), "--data", "/nonexistent"}),
+  EXPECT_THROW(ev::cli_main({"bench", "accuracy", "--grid", "tiny", "--no-paper", "--no-fit", "--out", out_dir("bad"),
+                             "--data", "/nonexistent"}),
                softatlas::InputError);
 }

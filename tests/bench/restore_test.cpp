@@ -33,8 +33,8 @@ TEST(BenchRestore, PullsTheAnteriorInferiorRegionAndMeasuresTheReturn) {
   EXPECT_EQ(r.organ, "ball");
   EXPECT_EQ(r.model, "tmsm");
   EXPECT_GT(r.grasped_vertices, 0);
-  EXPECT_LT(r.rest_drift_mm, 0.01);                 // TMSM is conservative: nothing drifts
-  EXPECT_NEAR(r.pull_reached_mm, 5.0, 0.5);         // position attachment reaches its target
+  EXPECT_LT(r.rest_drift_mm, 0.01);                   // TMSM is conservative: nothing drifts
+  EXPECT_NEAR(r.pull_reached_mm, 5.0, 0.5);           // position attachment reaches its target
   EXPECT_LT(r.residual_mm, 0.5 * r.pull_reached_mm);  // it comes back (the rigid part removed)
   EXPECT_LT(std::abs(r.volume_change_pct), 20.0);
   EXPECT_NEAR(r.simulated_s, 1.0 + 0.2 + 0.2 + 2.0, 1e-9);

@@ -90,7 +90,8 @@ TEST(OrganSet, RigidOrgansRoundTripAndStayRigidUnderAnOverride) {
     FAIL() << "model: bone accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("unknown model 'bone' (expected tmsm, cmsm, nmsm, flexion, solid or rigid)"),
-              std::string::npos) << e.what();
+              std::string::npos)
+        << e.what();
   }
 }
 
@@ -176,12 +177,14 @@ TEST(OrganSet, BadManifestsNameFileLineAndColumn) {
   t4.replace(t4.find("organs/liver.ply"), 16, "organs/lover.ply");
   expect_error(t4, "lover.ply: no such file");
   std::ofstream(yaml) << text;
-  std::ofstream(dir / "connections.csv") << "organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness\nliver,10,spleen,2,1,1\n";
+  std::ofstream(dir / "connections.csv")
+      << "organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness\nliver,10,spleen,2,1,1\n";
   try {
     io::read_organ_set(dir.string());
     FAIL();
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("connections.csv:2: organ 'spleen' is not in atlas.yaml"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("connections.csv:2: organ 'spleen' is not in atlas.yaml"), std::string::npos)
+        << e.what();
   }
 }
 
@@ -292,7 +295,10 @@ TEST(OrganSet, ConnectionsAreStrictAndTheFormatVersionIsChecked) {
   EXPECT_NE(error_of("liver,1,gb,2,1e999,1\n").find("rest_length_mm: expected a finite number"), std::string::npos);
   EXPECT_NE(error_of("liver,1,gb,2,1,nan\n").find("stiffness"), std::string::npos);
   EXPECT_NE(error_of("liver,1,gb,2,1,5x\n").find("stiffness"), std::string::npos);
-  EXPECT_NE(error_of("liver,1,gb,2,1,\x01\xfe\n").find("'?" "?'"), std::string::npos);
+  EXPECT_NE(error_of("liver,1,gb,2,1,\x01\xfe\n")
+                .find("'?"
+                      "?'"),
+            std::string::npos);
   const auto cr = io::parse_connections_csv(
       "organ_a,vertex_a,organ_b,vertex_b,rest_length_mm,stiffness\rliver,1,gb,2,0.5,3\rliver,4,gb,5,1,3\r", "cr.csv");
   ASSERT_EQ(cr.size(), 2u);
@@ -333,7 +339,8 @@ TEST(OrganSet, ConnectionsAreStrictAndTheFormatVersionIsChecked) {
 TEST(OrganSet, StalePartialFoldersOfDeadWritersAreRemoved) {
   const fs::path dir = fresh("softatlas_set_partial");
   fs::create_directories(dir);
-  const fs::path dead = dir / ".set.partial.2147480000", live = dir / ".set.partial.1", other = dir / ".other.partial.2147480001";
+  const fs::path dead = dir / ".set.partial.2147480000", live = dir / ".set.partial.1",
+                 other = dir / ".other.partial.2147480001";
   for (const fs::path& p : {dead, live, other}) fs::create_directories(p / "organs");
   io::write_organ_set(small_set(), (dir / "set").string());
   EXPECT_FALSE(fs::exists(dead));

@@ -38,8 +38,7 @@ void expect_rejected(const std::vector<std::string>& args, const std::string& ou
   EXPECT_FALSE(fs::exists(out)) << "output left behind: " << out;
   // No temporary sibling left either.
   for (const auto& e : fs::directory_iterator(fs::path(out).parent_path()))
-    EXPECT_EQ(e.path().filename().string().find(fs::path(out).filename().string()), std::string::npos)
-        << e.path();
+    EXPECT_EQ(e.path().filename().string().find(fs::path(out).filename().string()), std::string::npos) << e.path();
 }
 
 std::vector<std::string> chest_build(const std::string& ct, const std::string& labels, const std::string& out) {
@@ -90,7 +89,8 @@ TEST(BadInput, LabelGridThatDoesNotOverlapTheCt) {
 
 TEST(BadInput, BudgetBelowAClosedSurface) {
   test::Scratch tmp;
-  auto args = chest_build(chest("ct_heart_crop.nii.gz"), "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), tmp("out"));
+  auto args =
+      chest_build(chest("ct_heart_crop.nii.gz"), "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), tmp("out"));
   args.insert(args.end(), {"--budget", "pulmonary_artery=3"});
   expect_rejected(args, tmp("out"), "pulmonary_artery");
 }
@@ -112,7 +112,8 @@ TEST(BadInput, OutputFolderThatExists) {
   test::Scratch tmp;
   fs::create_directories(tmp("out"));
   try {
-    cli_main(chest_build(chest("ct_heart_crop.nii.gz"), "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), tmp("out")));
+    cli_main(
+        chest_build(chest("ct_heart_crop.nii.gz"), "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), tmp("out")));
     FAIL();
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("already exists"), std::string::npos);
@@ -122,13 +123,13 @@ TEST(BadInput, OutputFolderThatExists) {
 
 TEST(BadInput, MalformedBudgetAndMissingSeeds) {
   test::Scratch tmp;
-  auto args = chest_build(chest("ct_heart_crop.nii.gz"), "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), tmp("out"));
+  auto args =
+      chest_build(chest("ct_heart_crop.nii.gz"), "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), tmp("out"));
   args.insert(args.end(), {"--budget", "pulmonary_artery=lots"});
   expect_rejected(args, tmp("out"), "--budget pulmonary_artery");
   expect_rejected({"build", chest("ct_heart_crop.nii.gz"), "--seeds", tmp("none.yaml"), "-q", "-o", tmp("out")},
                   tmp("out"), "none.yaml");
 }
-
 
 // ---- faults (issue 17) ----
 
@@ -139,8 +140,14 @@ TEST(Faults, KilledBuildLeavesNothingOrACompleteSetAndTheNextRunCleansUp) {
   test::Scratch tmp;
   const std::string cli = std::string(SOFTATLAS_BINARY_DIR) + "/tests/pipeline/softatlas_pipeline_cli";
   ASSERT_TRUE(fs::exists(cli)) << cli;
-  const std::vector<std::string> args = {cli, "build", chest("ct_heart_crop.nii.gz"), "--labels",
-                                         "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), "-q", "-o", tmp("set")};
+  const std::vector<std::string> args = {cli,
+                                         "build",
+                                         chest("ct_heart_crop.nii.gz"),
+                                         "--labels",
+                                         "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"),
+                                         "-q",
+                                         "-o",
+                                         tmp("set")};
   auto spawn = [&]() {
     const pid_t pid = fork();
     if (pid == 0) {
@@ -203,7 +210,8 @@ TEST(Faults, UnwritableOutputGivesOneCleanError) {
   for (const std::vector<std::string>& args :
        {std::vector<std::string>{"build", chest("ct_heart_crop.nii.gz"), "--labels",
                                  "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), "-q", "-o", out},
-        std::vector<std::string>{"export", std::string(SOFTATLAS_SOURCE_DIR) + "/data/atlas", "-o", parent + "/atlas.glb"}}) {
+        std::vector<std::string>{"export", std::string(SOFTATLAS_SOURCE_DIR) + "/data/atlas", "-o",
+                                 parent + "/atlas.glb"}}) {
     try {
       cli_main(args);
       ADD_FAILURE() << args[0] << ": wrote into an unwritable folder";
@@ -224,9 +232,11 @@ TEST(Faults, UnwritableOutputGivesOneCleanError) {
 TEST(Faults, CommandLineNumbersAreStrict) {
   test::Scratch tmp;
   for (const char* bad : {"nan", "-1", "inf", "1e999", "12abc", "1e308"}) {
-    const std::vector<std::string> args = {"build", chest("ct_heart_crop.nii.gz"), "--labels",
-                                           "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"),
-                                           "--stiffness", bad, "-q", "-o", tmp("out")};
+    const std::vector<std::string> args = {"build",       chest("ct_heart_crop.nii.gz"),
+                                           "--labels",    "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"),
+                                           "--stiffness", bad,
+                                           "-q",          "-o",
+                                           tmp("out")};
     int rc = 0;
     try {
       rc = cli_main(args);

@@ -30,11 +30,11 @@ namespace fs = std::filesystem;
 TEST(Build, ChestCropHeartAndPulmonaryArteryThroughTheCommand) {
   test::Scratch tmp;
   const std::string set_dir = tmp("set");
-  ASSERT_EQ(cli_main({"build", chest("ct_heart_crop.nii.gz"), "--labels",
-                      "heart=" + chest("heart_on_ct_heart_crop_grid.nii.gz"), "--labels",
-                      "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), "--budget", "heart=1200",
-                      "-q", "-o", set_dir}),
-            0);
+  ASSERT_EQ(
+      cli_main({"build", chest("ct_heart_crop.nii.gz"), "--labels",
+                "heart=" + chest("heart_on_ct_heart_crop_grid.nii.gz"), "--labels",
+                "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), "--budget", "heart=1200", "-q", "-o", set_dir}),
+      0);
   const io::OrganSet set = io::read_organ_set(set_dir);
   EXPECT_EQ(set.space, "RAS");
   EXPECT_EQ(set.units, "mm");
@@ -81,7 +81,8 @@ TEST(Build, ChestCropHeartAndPulmonaryArteryThroughTheCommand) {
     ASSERT_TRUE(a && b);
     const double* p = &a->mesh.vertices[3 * c.vertex_a];
     const double* q = &b->mesh.vertices[3 * c.vertex_b];
-    const double d = std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]));
+    const double d =
+        std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]));
     EXPECT_NEAR(d, c.rest_length_mm, 1e-6);
     EXPECT_LE(d, 4.0 + 1e-9);
   }
@@ -119,7 +120,8 @@ TEST(Build, ChestCropHeartAndPulmonaryArteryThroughTheCommand) {
       const int i = static_cast<int>(n % crop.dims[0]), j = static_cast<int>((n / crop.dims[0]) % crop.dims[1]),
                 k = static_cast<int>(n / (static_cast<size_t>(crop.dims[0]) * crop.dims[1]));
       const auto v = src.voxel(crop.world(i, j, k));
-      const int si = static_cast<int>(std::lround(v[0])), sj = static_cast<int>(std::lround(v[1])), sk = static_cast<int>(std::lround(v[2]));
+      const int si = static_cast<int>(std::lround(v[0])), sj = static_cast<int>(std::lround(v[1])),
+                sk = static_cast<int>(std::lround(v[2]));
       EXPECT_NEAR(v[0], si, 1e-3);
       EXPECT_NEAR(v[2], sk, 1e-3);
       ASSERT_TRUE(si >= 0 && sj >= 0 && sk >= 0 && si < src.dims[0] && sj < src.dims[1] && sk < src.dims[2]);
@@ -166,7 +168,8 @@ void add_caret_label_table(const std::string& path, const std::map<int, std::str
   in.close();
   std::string xml = "<?xml version=\"1.0\" encoding=\"UTF-8\"?> <CaretExtension> <LabelTable>\n";
   for (const auto& [k, n] : names)
-    xml += "<Label Key=\"" + std::to_string(k) + "\" Red=\"1\" Green=\"0\" Blue=\"0\" Alpha=\"1\"><![CDATA[" + n + "]]></Label>\n";
+    xml += "<Label Key=\"" + std::to_string(k) + "\" Red=\"1\" Green=\"0\" Blue=\"0\" Alpha=\"1\"><![CDATA[" + n +
+           "]]></Label>\n";
   xml += "</LabelTable> </CaretExtension>";
   const int32_t esize = static_cast<int32_t>((8 + xml.size() + 15) / 16 * 16), ecode = 0;
   xml.resize(static_cast<size_t>(esize - 8), '\0');
@@ -213,7 +216,8 @@ TEST(Build, BareMaskWithoutANameIsAnError) {
   const std::string out = (fs::temp_directory_path() / "softatlas-test-bare-mask-set").string();
   fs::remove_all(out);
   try {
-    cli_main({"build", chest("ct_heart_crop.nii.gz"), "--labels", chest("heart_on_ct_heart_crop_grid.nii.gz"), "-q", "-o", out});
+    cli_main({"build", chest("ct_heart_crop.nii.gz"), "--labels", chest("heart_on_ct_heart_crop_grid.nii.gz"), "-q",
+              "-o", out});
     FAIL() << "a bare mask was accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("--labels NAME="), std::string::npos) << e.what();
@@ -251,8 +255,8 @@ TEST(Build, ConfigFileAndBudgetsFromYaml) {
   std::ofstream(tmp("build.yaml")) << "organs: [pulmonary_artery]\nbudget: {pulmonary_artery: 700}\n"
                                       "smoothing_iterations: 15\n";
   ASSERT_EQ(cli_main({"build", chest("ct_heart_crop.nii.gz"), "--labels",
-                      "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), "--config", tmp("build.yaml"), "-q",
-                      "-o", tmp("set")}),
+                      "pulmonary_artery=" + chest("pulmonary_artery.nii.gz"), "--config", tmp("build.yaml"), "-q", "-o",
+                      tmp("set")}),
             0);
   const io::OrganSet set = io::read_organ_set(tmp("set"));
   ASSERT_EQ(set.organs.size(), 1u);

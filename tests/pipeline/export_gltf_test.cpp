@@ -101,7 +101,9 @@ void check_document(const json& doc, const std::vector<uint8_t>& bin) {
     for (const json& c : root["children"]) {
       const json& node = doc["nodes"][c.get<int>()];
       if (node["name"] == name) {
-        const json& a = doc["accessors"][doc["meshes"][node["mesh"].get<int>()]["primitives"][0]["attributes"]["POSITION"].get<int>()];
+        const json& a =
+            doc["accessors"]
+               [doc["meshes"][node["mesh"].get<int>()]["primitives"][0]["attributes"]["POSITION"].get<int>()];
         return std::array<float, 3>{0.5f * (a["min"][0].get<float>() + a["max"][0].get<float>()),
                                     0.5f * (a["min"][1].get<float>() + a["max"][1].get<float>()),
                                     0.5f * (a["min"][2].get<float>() + a["max"][2].get<float>())};

@@ -88,8 +88,8 @@ TEST(Remesh, LabelSurfacesKeepTheirVoxelVolumeAndShape) {
            {"liver", 2.0, 3000}, {"liver", 3.0, 3000}, {"pancreas", 2.0, 800}, {"pancreas", 3.0, 800}}) {
     const LabelCase c = remesh_voxelized(organ, h, budget);
     const double v = softatlas::sim::enclosed_volume(c.r.mesh.vertices, c.r.mesh.faces);
-    printf("%s at %.0f mm: %s, Hausdorff %.2f mm (isotropic %.2f), volume ratio %.3f, offset %.2f mm\n", organ.c_str(), h,
-           c.r.simplification.c_str(), c.r.hausdorff_mm, c.r.isotropic_hausdorff_mm, v / c.stage3.mask_volume_mm3,
+    printf("%s at %.0f mm: %s, Hausdorff %.2f mm (isotropic %.2f), volume ratio %.3f, offset %.2f mm\n", organ.c_str(),
+           h, c.r.simplification.c_str(), c.r.hausdorff_mm, c.r.isotropic_hausdorff_mm, v / c.stage3.mask_volume_mm3,
            c.r.volume_offset_mm);
     expect_contract(c.r.mesh, budget);
     EXPECT_FALSE(c.r.self_intersections);

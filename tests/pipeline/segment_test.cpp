@@ -142,15 +142,14 @@ TEST(SeededSegmentation, HeartWallJoinsTheMyocardiumButNotTheLiver) {
 // edge (behind a 500 HU step), which a sum of length and steps would hand the near half.
 TEST(SeededSegmentation, FrontsMeetAtTheEdgeNotHalfwayBetweenSeeds) {
   auto vessel = [](double x, double y, double) { return std::hypot(x - 30, y - 30) <= 8.0; };
-  const Volume ct = synthetic_ct(40, 40, 100, [&](double x, double y, double z) {
-    return vessel(x, y, z) ? 400.0 : -100.0;
-  });
+  const Volume ct =
+      synthetic_ct(40, 40, 100, [&](double x, double y, double z) { return vessel(x, y, z) ? 400.0 : -100.0; });
   Seeds seeds;
-  seeds.organs["aorta"] = {{30, 30, 3}};               // one seed at the bottom end
-  seeds.background = {{30, 44, 140}, {5, 5, 75}};      // 6 mm outside the vessel near its top
+  seeds.organs["aorta"] = {{30, 30, 3}};           // one seed at the bottom end
+  seeds.background = {{30, 44, 140}, {5, 5, 75}};  // 6 mm outside the vessel near its top
   SegmentOptions o;
   o.method = "growth";  // the tube, wall and barrier models are the growth method's
-  o.tubes.clear();  // the region grower alone
+  o.tubes.clear();      // the region grower alone
   const Volume seg = segment_seeded(ct, seeds, o, "synthetic");
   // The vessel's core (its rim is partial volume, below the seed window) near the click.
   size_t core = 0, kept = 0;
@@ -238,7 +237,9 @@ TEST(SeededSegmentation, FairProtocolDrawsAreFixed) {
   EXPECT_NE(a.organs.at("heart"), other.organs.at("heart"));
   for (const auto& p : a.organs.at("heart")) {  // inside the reference heart
     const auto v = c.ref.voxel(p);
-    EXPECT_EQ(std::lround(c.ref.values[c.ref.index(int(std::lround(v[0])), int(std::lround(v[1])), int(std::lround(v[2])))]), 51);
+    EXPECT_EQ(
+        std::lround(c.ref.values[c.ref.index(int(std::lround(v[0])), int(std::lround(v[1])), int(std::lround(v[2])))]),
+        51);
   }
 }
 

@@ -45,7 +45,8 @@ std::vector<int> erosion_depth(const Volume& v, int id) {
           const size_t x = v.index(i, j, k);
           if (!cur[x]) continue;
           const size_t sy = d[0], sz = static_cast<size_t>(d[0]) * d[1];
-          if (cur[x - 1] && cur[x + 1] && cur[x - sy] && cur[x + sy] && cur[x - sz] && cur[x + sz]) next[x] = 1, any = true;
+          if (cur[x - 1] && cur[x + 1] && cur[x - sy] && cur[x + sy] && cur[x - sz] && cur[x + sz])
+            next[x] = 1, any = true;
         }
     for (size_t x = 0; x < cur.size(); ++x)
       if (cur[x]) depth[x] = level;
@@ -71,7 +72,8 @@ std::vector<std::array<double, 3>> spread(const Volume& v, const std::vector<siz
     size_t far = 0;
     for (size_t c = 0; c < cand.size(); ++c) {
       const auto& p = world[c];
-      const double dd = (p[0] - world[pick][0]) * (p[0] - world[pick][0]) + (p[1] - world[pick][1]) * (p[1] - world[pick][1]) +
+      const double dd = (p[0] - world[pick][0]) * (p[0] - world[pick][0]) +
+                        (p[1] - world[pick][1]) * (p[1] - world[pick][1]) +
                         (p[2] - world[pick][2]) * (p[2] - world[pick][2]);
       best[c] = std::min(best[c], dd);
       if (best[c] > best[far]) far = c;
@@ -106,8 +108,8 @@ std::vector<std::array<double, 3>> deep_points(const Volume& ref, int id, int n)
 
 // n points spread over a ring 4-6 voxels outside all `organs` (ids in ref), away from the box
 // border (where the erosion depth also counts up, and where a user would not click).
-std::vector<std::array<double, 3>> ring_points(const Volume& ref, const std::vector<std::pair<std::string, int>>& organs,
-                                               int n) {
+std::vector<std::array<double, 3>> ring_points(const Volume& ref,
+                                               const std::vector<std::pair<std::string, int>>& organs, int n) {
   Volume inv = ref;
   for (size_t x = 0; x < inv.values.size(); ++x) {
     bool any = false;
@@ -221,8 +223,8 @@ Volume segment_like_a_user(const Volume& ct, const Volume& ref, const std::vecto
     seg = segment_seeded(ct, seeds, growth_options(), path);
     if (std::getenv("SOFTATLAS_VERBOSE"))  // Dice after each click
       for (const auto& [name, id] : organs)
-        std::printf("  click %d at (%.1f, %.1f, %.1f): %s %.4f\n", c + 1, (*click)[0], (*click)[1], (*click)[2], name.c_str(),
-                    dice(seg, id, ref, id));
+        std::printf("  click %d at (%.1f, %.1f, %.1f): %s %.4f\n", c + 1, (*click)[0], (*click)[1], (*click)[2],
+                    name.c_str(), dice(seg, id, ref, id));
   }
   std::ofstream(path) << seeds_yaml(seeds);
   if (const char* keep = std::getenv("SOFTATLAS_KEEP_SEEDS"))
@@ -247,9 +249,10 @@ TEST(SeededSegmentation, DiceFloorsChestCrops) {
   // pulmonary artery mask (the trunk).
   {
     const Volume ct = read_volume(chest("ct_heart_crop.nii.gz"));
-    const Volume ref = labels_on_grid(ct, {{chest("heart_on_ct_heart_crop_grid.nii.gz"), 51},
-                                           {chest("aorta.nii.gz"), 52}});
-    const Volume seg = segment_like_a_user(ct, ref, {{"heart", 51}, {"aorta", 52}}, tmp("heart_seeds.yaml"), ring, corrections);
+    const Volume ref =
+        labels_on_grid(ct, {{chest("heart_on_ct_heart_crop_grid.nii.gz"), 51}, {chest("aorta.nii.gz"), 52}});
+    const Volume seg =
+        segment_like_a_user(ct, ref, {{"heart", 51}, {"aorta", 52}}, tmp("heart_seeds.yaml"), ring, corrections);
     const double d = dice(seg, 51, ref, 51);
     std::printf("DICE heart %.4f (aorta on the heart crop %.4f)\n", d, dice(seg, 52, ref, 52));
     EXPECT_GE(d, 0.90);
@@ -257,7 +260,8 @@ TEST(SeededSegmentation, DiceFloorsChestCrops) {
   {
     const Volume ct = read_volume(chest("ct_aorta_crop.nii.gz"));
     const Volume ref = labels_on_grid(ct, {{chest("aorta.nii.gz"), 52}, {chest("heart.nii.gz"), 51}});
-    const Volume seg = segment_like_a_user(ct, ref, {{"aorta", 52}, {"heart", 51}}, tmp("aorta_seeds.yaml"), ring, corrections);
+    const Volume seg =
+        segment_like_a_user(ct, ref, {{"aorta", 52}, {"heart", 51}}, tmp("aorta_seeds.yaml"), ring, corrections);
     const double d = dice(seg, 52, ref, 52);
     size_t ns = 0, nr = 0;
     for (size_t i = 0; i < seg.values.size(); ++i) ns += seg.values[i] == 52, nr += ref.values[i] == 52;
@@ -301,8 +305,8 @@ void expect_set_contract(const std::string& dir) {
 
 TEST(SlowBuild, AbdomenSlabFromNiftiAndFromDicomAgree) {
   test::Scratch tmp;
-  const std::vector<std::string> organs = {"liver", "spleen", "stomach", "pancreas", "aorta", "inferior_vena_cava",
-                                           "portal_vein_and_splenic_vein"};
+  const std::vector<std::string> organs = {
+      "liver", "spleen", "stomach", "pancreas", "aorta", "inferior_vena_cava", "portal_vein_and_splenic_vein"};
   std::string list;
   for (const auto& o : organs) list += (list.empty() ? "" : ",") + o;
   ASSERT_EQ(cli_main({"build", abdomen("ct_from_dicom.nii.gz"), "--labels", abdomen("example_seg_dicom.nii.gz"),
@@ -347,8 +351,8 @@ TEST(SlowWorkflow, SnakemakeBuildsTheSampleAndSkipsItNextTime) {
   const std::string src = SOFTATLAS_SOURCE_DIR;
   std::ofstream(tmp("config.yaml")) << "out: results\ncases:\n  sample:\n    ct: " << src
                                     << "/data/sample/ct_heart_crop.nii.gz\n    labels:\n      - heart=" << src
-                                    << "/data/sample/heart_on_ct_heart_crop_grid.nii.gz\n      - pulmonary_artery=" << src
-                                    << "/data/sample/pulmonary_artery.nii.gz\n";
+                                    << "/data/sample/heart_on_ct_heart_crop_grid.nii.gz\n      - pulmonary_artery="
+                                    << src << "/data/sample/pulmonary_artery.nii.gz\n";
   const std::string cli = std::string(SOFTATLAS_BINARY_DIR) + "/tests/pipeline/softatlas_pipeline_cli";
   const std::string cmd = "snakemake -s " + src + "/workflows/Snakefile --configfile " + tmp("config.yaml") + " -d " +
                           tmp("") + " --cores 2 -q --config softatlas=" + cli;

@@ -41,7 +41,8 @@ struct Scratch {
 inline Volume voxelize(const io::TriMesh& m, double h) {
   double lo[3] = {1e300, 1e300, 1e300}, hi[3] = {-1e300, -1e300, -1e300};
   for (size_t v = 0; v < m.vertex_count(); ++v)
-    for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], m.vertices[3 * v + c]), hi[c] = std::max(hi[c], m.vertices[3 * v + c]);
+    for (int c = 0; c < 3; ++c)
+      lo[c] = std::min(lo[c], m.vertices[3 * v + c]), hi[c] = std::max(hi[c], m.vertices[3 * v + c]);
   Volume vol;
   for (int c = 0; c < 3; ++c) {
     lo[c] -= 2 * h;

@@ -132,23 +132,17 @@ std::string slurp_gz_raw(const std::string& path) {
 TEST(VolumeIo, TruncatedAndCorruptFilesNameTheFile) {
   test::Scratch tmp;
   const std::string full = slurp_gz_raw(chest("pulmonary_artery.nii.gz"));
-  {
-    std::ofstream(tmp("cut.nii.gz"), std::ios::binary) << full.substr(0, full.size() / 2);
-  }
+  { std::ofstream(tmp("cut.nii.gz"), std::ios::binary) << full.substr(0, full.size() / 2); }
   try {
     read_volume(tmp("cut.nii.gz"));
     FAIL() << "truncated file was accepted";
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("cut.nii.gz"), std::string::npos) << e.what();
   }
-  {
-    std::ofstream(tmp("junk.nii"), std::ios::binary) << std::string(400, 'x');
-  }
+  { std::ofstream(tmp("junk.nii"), std::ios::binary) << std::string(400, 'x'); }
   EXPECT_THROW(read_volume(tmp("junk.nii")), InputError);
   EXPECT_THROW(read_volume(tmp("missing.nii.gz")), InputError);
-  {
-    std::ofstream(tmp("x.txt")) << "hello";
-  }
+  { std::ofstream(tmp("x.txt")) << "hello"; }
   EXPECT_THROW(read_volume(tmp("x.txt")), InputError);
   // A truncated DICOM slice.
   const std::string slice = slurp_gz_raw(abdomen("dicom/CT.1.3.12.2.1107.5.1.4.60064.30000022120808113428000016573"));
@@ -221,7 +215,6 @@ TEST(LabelTable, MatchesTheSharedTsv) {
   EXPECT_EQ(default_face_budget("kidney_left"), 800);
 }
 
-
 // ---- mutated headers (issue 17): each refused with one line naming the file and the field ----
 
 std::string gunzip(const std::string& path) {
@@ -265,7 +258,11 @@ TEST(VolumeIo, NiftiHeaderFieldsAreCheckedBeforeVtkReadsThem) {
   const std::string nii = gunzip(chest("pulmonary_artery.nii.gz"));
   ASSERT_GT(nii.size(), 352u);
   const float nan = std::nanf(""), inf = INFINITY;
-  struct Case { const char* name; std::string bytes; const char* field; };
+  struct Case {
+    const char* name;
+    std::string bytes;
+    const char* field;
+  };
   const Case cases[] = {
       {"dim0_zero.nii", patched<int16_t>(nii, 40, 0), "dim[0]"},
       {"dim0_huge.nii", patched<int16_t>(nii, 40, 300), "dim[0]"},
@@ -331,9 +328,9 @@ TEST(VolumeIo, LabelTableExtensionIsReadByAnXmlParser) {
   };
   // A valid table: names and keys as written, CDATA or text.
   {
-    std::ofstream(tmp("named.nii"), std::ios::binary)
-        << with_extension("<CIFTI><LabelTable><Label Key=\"5\" Red=\"1\"><![CDATA[liver]]></Label>"
-                          "<Label Key=\"52\">aorta </Label><Label Key=\"0\">unknown</Label></LabelTable></CIFTI>");
+    std::ofstream(tmp("named.nii"), std::ios::binary) << with_extension(
+        "<CIFTI><LabelTable><Label Key=\"5\" Red=\"1\"><![CDATA[liver]]></Label>"
+        "<Label Key=\"52\">aorta </Label><Label Key=\"0\">unknown</Label></LabelTable></CIFTI>");
     const Volume named = read_volume(tmp("named.nii"));
     ASSERT_EQ(named.label_names.size(), 2u);
     EXPECT_EQ(named.label_names.at(5), "liver");
@@ -343,8 +340,9 @@ TEST(VolumeIo, LabelTableExtensionIsReadByAnXmlParser) {
   std::string long_name = "<LabelTable><Label Key=\"1\"><![CDATA[" + std::string(200000, 'x');
   std::string deep = "<LabelTable>";
   for (int i = 0; i < 100000; ++i) deep += "<a>";
-  for (const std::string& xml : {long_name, deep, std::string("<LabelTable><Label Key=\"12abc\">x</Label></LabelTable>"),
-                                 std::string("<LabelTable><Label Key=\"99999999999\">x</Label></LabelTable>")})
+  for (const std::string& xml :
+       {long_name, deep, std::string("<LabelTable><Label Key=\"12abc\">x</Label></LabelTable>"),
+        std::string("<LabelTable><Label Key=\"99999999999\">x</Label></LabelTable>")})
     expect_refused(tmp, "bad_table.nii", with_extension(xml), "LabelTable");
   // An extension whose size runs past vox_offset.
   std::string bad_size = with_extension("<LabelTable></LabelTable>");
@@ -358,7 +356,8 @@ TEST(VolumeIo, NrrdAndMetaImageHeadersAreStrict) {
   const std::string body(6 * 5 * 4 * 2, '\1');
   auto nrrd = [&](const std::string& fields) {
     return "NRRD0004\ntype: short\ndimension: 3\nspace: left-posterior-superior\nsizes: 6 5 4\n"
-           "endian: little\nencoding: raw\n" + fields + "\n" + body;
+           "endian: little\nencoding: raw\n" +
+           fields + "\n" + body;
   };
   expect_refused(tmp, "nan_dir.nrrd", nrrd("space directions: (nan,0,0) (0,1,0) (0,0,1)\n"), "space directions");
   expect_refused(tmp, "inf_origin.nrrd", nrrd("space origin: (0,inf,0)\n"), "space origin");
@@ -374,7 +373,8 @@ TEST(VolumeIo, NrrdAndMetaImageHeadersAreStrict) {
   expect_refused(tmp, "no_blank.nrrd", std::string("NRRD0004\ntype: short\n") + std::string(70000, 'a'), "header");
   auto mha = [&](const std::string& fields) {
     return "ObjectType = Image\nNDims = 3\nBinaryData = True\nCompressedData = False\nDimSize = 6 5 4\n"
-           "ElementType = MET_SHORT\n" + fields + "ElementDataFile = LOCAL\n" + body;
+           "ElementType = MET_SHORT\n" +
+           fields + "ElementDataFile = LOCAL\n" + body;
   };
   expect_refused(tmp, "cut.mha", mha("").substr(0, mha("").size() - 1), "truncated");
   expect_refused(tmp, "nan_spacing.mha", mha("ElementSpacing = 1 nan 1\n"), "ElementSpacing");

@@ -79,7 +79,7 @@ TEST(Contact, PushedSphereStaysOutOfItsNeighbour) {
   EXPECT_GT(without.penetration_m, 0.008);  // without contact the left sphere enters the right
   EXPECT_LT(with.penetration_m, 1e-3);
   EXPECT_GT(with.contacts, 0);
-  EXPECT_GT(with.right_moved_m, 0.002);     // the right sphere was pushed, not passed through
+  EXPECT_GT(with.right_moved_m, 0.002);  // the right sphere was pushed, not passed through
   EXPECT_EQ(without.contacts, 0);
 }
 
@@ -124,9 +124,9 @@ TEST(Contact, HeldPatchDrivenDeepStopsAtTheNeighbour) {
     if (i % 5 == 4) deepest = std::max(deepest, sim::max_penetration(m, s));
   }
   EXPECT_LT(deepest, 1e-3);
-  sim::move_attachment(s, {0.0, 0, 0});                  // the device back where it grasped
+  sim::move_attachment(s, {0.0, 0, 0});  // the device back where it grasped
   for (int i = 0; i < 400; ++i) sim::step(m, s, w);
-  EXPECT_LT(std::abs(s.tool.contact_shift[0]), 1e-9);    // the hold is back on the device
+  EXPECT_LT(std::abs(s.tool.contact_shift[0]), 1e-9);  // the hold is back on the device
   sim::release(s);
   for (int i = 0; i < 300; ++i) sim::step(m, s, w);
   EXPECT_LT(sim::max_displacement(m, s), 5e-4);

@@ -192,8 +192,9 @@ TEST(Fem, ReadsTheSofaLiverGmshMesh) {
     const double* a = &mesh.nodes[3 * faces[3 * f]];
     const double* b = &mesh.nodes[3 * faces[3 * f + 1]];
     const double* c = &mesh.nodes[3 * faces[3 * f + 2]];
-    vs += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
-           a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
+    vs +=
+        (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) /
+        6.0;
   }
   fem::Material mat;
   const fem::Model model = fem::compile(mesh, mat);  // also reorients tetrahedra

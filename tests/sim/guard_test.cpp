@@ -12,8 +12,8 @@ namespace {
 
 bool all_finite(const sim::State& s) {
   for (size_t v = 0; v < s.x.size(); ++v)
-    if (!std::isfinite(s.x[v]) || !std::isfinite(s.y[v]) || !std::isfinite(s.z[v]) ||
-        !std::isfinite(s.vx[v]) || !std::isfinite(s.vy[v]) || !std::isfinite(s.vz[v]))
+    if (!std::isfinite(s.x[v]) || !std::isfinite(s.y[v]) || !std::isfinite(s.z[v]) || !std::isfinite(s.vx[v]) ||
+        !std::isfinite(s.vy[v]) || !std::isfinite(s.vz[v]))
       return false;
   return true;
 }
@@ -37,8 +37,8 @@ struct Outcome {
   double max_disp;
 };
 
-Outcome pull_liver(double k, double dt, sim::Integrator integ, sim::ModelKind model, bool guard,
-                   double pull_m, int steps) {
+Outcome pull_liver(double k, double dt, sim::Integrator integ, sim::ModelKind model, bool guard, double pull_m,
+                   int steps) {
   sim::SceneDesc scene = liver_scene(k, dt, integ, model);
   scene.guard = guard;
   const sim::Model m = sim::compile(scene);

@@ -60,7 +60,8 @@ TEST(Cmsm, CompensationKeepsSpringsWithinTheirRatios) {
   double worst = 0;
   for (int32_t q = 0; q < m.nspring; ++q) {
     const int32_t a = m.spring_a[q], b = m.spring_b[q];
-    const double l = std::sqrt(std::pow(st.x[b] - st.x[a], 2) + std::pow(st.y[b] - st.y[a], 2) + std::pow(st.z[b] - st.z[a], 2));
+    const double l =
+        std::sqrt(std::pow(st.x[b] - st.x[a], 2) + std::pow(st.y[b] - st.y[a], 2) + std::pow(st.z[b] - st.z[a], 2));
     worst = std::max(worst, std::abs(l / m.spring_length0[q] - 1.0));
   }
   EXPECT_LT(worst, 0.03) << "springs must stay near (1 +/- tau) l0";

@@ -14,7 +14,8 @@ namespace {
 std::vector<int32_t> lowest(const sim::OrganDesc& d, size_t n) {
   std::vector<int32_t> ids(d.vertices.size() / 3);
   for (size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<int32_t>(i);
-  std::sort(ids.begin(), ids.end(), [&](int32_t a, int32_t b) { return d.vertices[3 * a + 2] < d.vertices[3 * b + 2]; });
+  std::sort(ids.begin(), ids.end(),
+            [&](int32_t a, int32_t b) { return d.vertices[3 * a + 2] < d.vertices[3 * b + 2]; });
   ids.resize(n);
   return ids;
 }
@@ -52,9 +53,9 @@ TEST(Paper000, SphereTensileTestReachesEquilibriumWithMatchingFeedback) {
       o.material.vertex_mass_kg = 1.0;
       o.material.elastica_a = 1.0;
       o.material.elastica_b = 0.5;
-      o.material.elastica_p = 2;          // p = 2 for the sphere (section III)
-      o.material.elastica_literal = true; // the paper's form of 000 eq 5
-      o.material.curvature_unit_m = 1.0;  // dimensionless sphere
+      o.material.elastica_p = 2;           // p = 2 for the sphere (section III)
+      o.material.elastica_literal = true;  // the paper's form of 000 eq 5
+      o.material.curvature_unit_m = 1.0;   // dimensionless sphere
       o.fixed = lowest(o, 10);
       // Paper's Verlet scheme; the guard sub-steps the stiff damping (d = 100 on unit masses).
       s.integrator = sim::Integrator::verlet;
@@ -97,8 +98,8 @@ sim::SceneDesc liver1000(sim::ModelKind model, double b) {
   o.material.thickness_m = 1e-3;        // t of eq 9 as in the paper
   o.material.elastica_a = 1.0;
   o.material.elastica_b = b;
-  o.material.elastica_p = 1;            // p = 1 for the liver
-  o.material.elastica_literal = true;   // the paper's form of 000 eq 5
+  o.material.elastica_p = 1;           // p = 1 for the liver
+  o.material.elastica_literal = true;  // the paper's form of 000 eq 5
   o.material.tau_s = model == sim::ModelKind::cmsm ? 0.0 : -1.0;
   o.fixed = lowest(o, 20);
   s.integrator = sim::Integrator::semi_implicit;
@@ -122,10 +123,10 @@ TEST(Paper000, LiverFeedbackForceEqualsAppliedForceAtEquilibrium) {
       const int64_t n = sim::run_to_rest(m, st, w, 20000, 1e-6, &rep);
       const auto r = sim::tool_reaction(st);
       std::printf("liver %s F=[%g %g %g] mN: %lld steps, sum|a| %g, feedback %g %g %g mN\n", sim::to_string(model),
-                  1e3 * F[0], 1e3 * F[1], 1e3 * F[2], (long long)n, rep.accel_sum, -1e3 * r[0], -1e3 * r[1], -1e3 * r[2]);
+                  1e3 * F[0], 1e3 * F[1], 1e3 * F[2], (long long)n, rep.accel_sum, -1e3 * r[0], -1e3 * r[1],
+                  -1e3 * r[2]);
       const double fnorm = 1e-3 * std::sqrt(dir[0] + dir[1] + dir[2]);
-      for (int k = 0; k < 3; ++k)
-        EXPECT_NEAR(-r[k], F[k], 0.02 * fnorm) << sim::to_string(model) << " component " << k;
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(-r[k], F[k], 0.02 * fnorm) << sim::to_string(model) << " component " << k;
       EXPECT_GT(sim::max_displacement(m, st), 1e-5) << "the load must move the liver";
       const double vc = sim::total_volume(m, st) / s.organs[0].material.thickness_m;
       EXPECT_TRUE(std::isfinite(vc));
@@ -162,7 +163,8 @@ TEST(Paper000, LiverPositionAttachmentMovesTheFaceExactly) {
       }
       // Paper Table II: 0.4-1.3 %. Our TMSM/NMSM land there; CMSM's position projection on a
       // surface mesh loses more (the paper notes CMSM suits tetrahedral meshes).
-      EXPECT_LT(std::abs(vc), model == sim::ModelKind::cmsm ? 15.0 : 3.0) << sim::to_string(model) << " volume change " << vc << " %";
+      EXPECT_LT(std::abs(vc), model == sim::ModelKind::cmsm ? 15.0 : 3.0)
+          << sim::to_string(model) << " volume change " << vc << " %";
     }
 }
 

@@ -13,8 +13,7 @@ namespace {
 
 // A soft sphere (r = 2 cm) resting on a rigid sphere below it, joined by connection springs
 // between their closest vertices.
-sim::SceneDesc bone_and_organ(sim::ModelKind soft, sim::Integrator integrator, int threads = 1,
-                              bool connected = true) {
+sim::SceneDesc bone_and_organ(sim::ModelKind soft, sim::Integrator integrator, int threads = 1, bool connected = true) {
   sim::SceneDesc scene;
   test::Mesh bone = test::icosphere(2, 0.02), organ = test::icosphere(2, 0.02);
   for (size_t i = 2; i < organ.V.size(); i += 3) organ.V[i] += 0.045;  // 5 mm gap above the bone
@@ -74,7 +73,8 @@ TEST(Rigid, CompilesToFixedVerticesWithoutSpringsAndSaysSo) {
   EXPECT_GT(m.nconn, 0);
   EXPECT_FALSE(m.rigid_conn_verts.empty());
   bool said = false;
-  for (const std::string& line : m.plan) said = said || line.find("[rigid]: all 162 vertices fixed") != std::string::npos;
+  for (const std::string& line : m.plan)
+    said = said || line.find("[rigid]: all 162 vertices fixed") != std::string::npos;
   EXPECT_TRUE(said) << sim::explain(m);
   // a spring between two rigid organs can do nothing: left out, and said
   sim::SceneDesc two = bone_and_organ(sim::ModelKind::nmsm, sim::Integrator::semi_implicit);

@@ -17,7 +17,8 @@ constexpr double kPi = 3.14159265358979323846;
 // Organ vertices in the lowest `fraction` of the y extent (the support, as the evidence does).
 inline std::vector<int32_t> support(const sim::OrganDesc& o, double fraction) {
   double lo = INFINITY, hi = -INFINITY;
-  for (size_t i = 0; i < o.vertices.size() / 3; ++i) lo = std::min(lo, o.vertices[3 * i + 1]), hi = std::max(hi, o.vertices[3 * i + 1]);
+  for (size_t i = 0; i < o.vertices.size() / 3; ++i)
+    lo = std::min(lo, o.vertices[3 * i + 1]), hi = std::max(hi, o.vertices[3 * i + 1]);
   std::vector<int32_t> out;
   for (size_t i = 0; i < o.vertices.size() / 3; ++i)
     if (o.vertices[3 * i + 1] <= lo + fraction * (hi - lo)) out.push_back(static_cast<int32_t>(i));
@@ -26,7 +27,7 @@ inline std::vector<int32_t> support(const sim::OrganDesc& o, double fraction) {
 
 // Source vertex farthest along `dir` and the source vertices within `radius` of it.
 inline std::vector<int32_t> region(const sim::OrganDesc& o, const std::array<double, 3>& dir, double radius,
-                            std::array<double, 3>* centre = nullptr) {
+                                   std::array<double, 3>* centre = nullptr) {
   const size_t n = o.vertices.size() / 3;
   size_t best = 0;
   double bd = -INFINITY;

@@ -22,8 +22,8 @@ using namespace solid_test;
 // The static FEM reference (fem_quadratic.cpp) on a voxel mesh of the same surface: cells
 // of `cell_m` whose centre is inside, boundary nodes in the support slab fixed, boundary nodes
 // within `radius` of the grasp point moved by `disp`. Returns the reaction's magnitude / |disp|.
-double fem_grasp_stiffness(const sim::OrganDesc& o, double cell_m, const std::array<double, 3>& centre,
-                           double radius, const std::array<double, 3>& disp, int* nodes = nullptr) {
+double fem_grasp_stiffness(const sim::OrganDesc& o, double cell_m, const std::array<double, 3>& centre, double radius,
+                           const std::array<double, 3>& disp, int* nodes = nullptr) {
   const sim::SolidLattice L = sim::solid_lattice(o.vertices, o.faces, cell_m);
   sim::fem::TetMesh mesh;
   std::vector<int32_t> remap(L.mesh.nnode(), -1);
@@ -45,7 +45,8 @@ double fem_grasp_stiffness(const sim::OrganDesc& o, double cell_m, const std::ar
   std::vector<uint8_t> boundary(mesh.nnode(), 0);
   for (int32_t v : sim::fem::boundary_faces(mesh)) boundary[v] = 1;
   double lo = INFINITY, hi = -INFINITY;
-  for (size_t i = 0; i < o.vertices.size() / 3; ++i) lo = std::min(lo, o.vertices[3 * i + 1]), hi = std::max(hi, o.vertices[3 * i + 1]);
+  for (size_t i = 0; i < o.vertices.size() / 3; ++i)
+    lo = std::min(lo, o.vertices[3 * i + 1]), hi = std::max(hi, o.vertices[3 * i + 1]);
   std::vector<int32_t> fixed, grasp;
   for (int32_t n = 0; n < mesh.nnode(); ++n) {
     if (!boundary[n]) continue;
@@ -66,7 +67,8 @@ double fem_grasp_stiffness(const sim::OrganDesc& o, double cell_m, const std::ar
   EXPECT_TRUE(sim::fem::solve_static(fm, load, x, opt).converged);
   const auto F = sim::fem::reaction_force(fm, x, grasp);
   if (nodes) *nodes = fm.nnode;
-  return std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]) / std::sqrt(disp[0] * disp[0] + disp[1] * disp[1] + disp[2] * disp[2]);
+  return std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]) /
+         std::sqrt(disp[0] * disp[0] + disp[1] * disp[1] + disp[2] * disp[2]);
 }
 
 // (d) The grasp stiffness of a liver with E = 4 kPa against the static quadratic FEM on a voxel
@@ -90,10 +92,11 @@ TEST(SolidModel, GraspStiffnessMatchesTheFemReference) {
     for (int k = 0; k < 800; ++k) sim::step(m, s, w);
     const auto F = sim::tool_reaction(s);
     const double k_solid = std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]) / 0.01;
-    std::printf("grasp stiffness disp (%g %g %g) mm: solid (%d nodes) %.1f N/m, FEM reference %.1f N/m (%d nodes), "
-                "%.1f N/m (12 mm cells); solid / reference %.2f\n",
-                1e3 * disp[0], 1e3 * disp[1], 1e3 * disp[2], m.solids[0].nnode, k_solid, k_ref, ref_nodes, k_ref_coarse,
-                k_solid / k_ref);
+    std::printf(
+        "grasp stiffness disp (%g %g %g) mm: solid (%d nodes) %.1f N/m, FEM reference %.1f N/m (%d nodes), "
+        "%.1f N/m (12 mm cells); solid / reference %.2f\n",
+        1e3 * disp[0], 1e3 * disp[1], 1e3 * disp[2], m.solids[0].nnode, k_solid, k_ref, ref_nodes, k_ref_coarse,
+        k_solid / k_ref);
     // Measured against this reference (8 mm cells: 41.6 / 24.4 N/m; 12 mm: 39.8 / 24.0) with the
     // default budget (386 nodes), the grasp one constraint per lattice tetrahedron on the mean of
     // its held vertices: 2.38x / 2.39x. One constraint per held vertex: 2.86x / 2.63x (it fixed

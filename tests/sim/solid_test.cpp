@@ -26,11 +26,14 @@ using namespace solid_test;
 double residual_after_rigid(const sim::Model& m, const sim::State& s) {
   const int n = m.nvert;
   Eigen::Vector3d cr = Eigen::Vector3d::Zero(), cx = Eigen::Vector3d::Zero();
-  for (int v = 0; v < n; ++v) cr += Eigen::Vector3d(m.vert_rest_x[v], m.vert_rest_y[v], m.vert_rest_z[v]), cx += Eigen::Vector3d(s.x[v], s.y[v], s.z[v]);
+  for (int v = 0; v < n; ++v)
+    cr += Eigen::Vector3d(m.vert_rest_x[v], m.vert_rest_y[v], m.vert_rest_z[v]),
+        cx += Eigen::Vector3d(s.x[v], s.y[v], s.z[v]);
   cr /= n, cx /= n;
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   for (int v = 0; v < n; ++v)
-    H += (Eigen::Vector3d(s.x[v], s.y[v], s.z[v]) - cx) * (Eigen::Vector3d(m.vert_rest_x[v], m.vert_rest_y[v], m.vert_rest_z[v]) - cr).transpose();
+    H += (Eigen::Vector3d(s.x[v], s.y[v], s.z[v]) - cx) *
+         (Eigen::Vector3d(m.vert_rest_x[v], m.vert_rest_y[v], m.vert_rest_z[v]) - cr).transpose();
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
   if ((svd.matrixV() * svd.matrixU().transpose()).determinant() < 0) D(2, 2) = -1;
@@ -59,7 +62,9 @@ TEST(SolidLattice, EmbedsEverySurfaceVertexExactly) {
       const double* a = &V[3 * mesh.F[f]];
       const double* b = &V[3 * mesh.F[f + 1]];
       const double* c = &V[3 * mesh.F[f + 2]];
-      vol += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) / 6;
+      vol += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+              a[2] * (b[0] * c[1] - b[1] * c[0])) /
+             6;
     }
     EXPECT_NEAR(inside / std::fabs(vol), 1.0, 0.05) << name;
     for (size_t v = 0; v < V.size() / 3; ++v) {
@@ -140,7 +145,9 @@ PullResult pull_release(const sim::SceneDesc& scene, double pull_m, const std::a
       r.volume_change_pct = std::max(r.volume_change_pct, 100.0 * std::fabs(sim::organ_volume(m, s, 0) / v0 - 1.0));
       if (k == pull + hold - 1) {
         double d = 0;
-        for (int32_t v : grasp) d += std::sqrt(std::pow(s.x[v] - m.vert_rest_x[v], 2) + std::pow(s.y[v] - m.vert_rest_y[v], 2) + std::pow(s.z[v] - m.vert_rest_z[v], 2));
+        for (int32_t v : grasp)
+          d += std::sqrt(std::pow(s.x[v] - m.vert_rest_x[v], 2) + std::pow(s.y[v] - m.vert_rest_y[v], 2) +
+                         std::pow(s.z[v] - m.vert_rest_z[v], 2));
         r.reached_mm = 1e3 * d / grasp.size();
       }
     }
@@ -159,9 +166,11 @@ TEST(SolidModel, ReturnsAfterPullAndKeepsVolume) {
   for (const auto& dir : std::vector<std::array<double, 3>>{{0, 1, 0}, {0, s2, s2}, {s2, 0, -s2}}) {
     for (bool fixed : {true, false}) {
       const PullResult r = pull_release(liver_scene("meshes/liver_2000.obj", 5e-3, 4000.0, fixed), 0.030, dir);
-      std::printf("solid pull 30 mm dir (%.2f %.2f %.2f) fixed %d: reached %.1f mm, residual %.3f mm 2 s and %.3f mm 5 s "
-                  "after release, volume %.2f %%, peak %.3f N\n",
-                  dir[0], dir[1], dir[2], fixed, r.reached_mm, r.residual_mm, r.residual_end_mm, r.volume_change_pct, r.peak_force_N);
+      std::printf(
+          "solid pull 30 mm dir (%.2f %.2f %.2f) fixed %d: reached %.1f mm, residual %.3f mm 2 s and %.3f mm 5 s "
+          "after release, volume %.2f %%, peak %.3f N\n",
+          dir[0], dir[1], dir[2], fixed, r.reached_mm, r.residual_mm, r.residual_end_mm, r.volume_change_pct,
+          r.peak_force_N);
       EXPECT_TRUE(r.finite);
       EXPECT_GE(r.reached_mm, 20.0);
       EXPECT_LT(r.residual_end_mm, 1.0);
@@ -193,7 +202,8 @@ double piece_volume(const sim::Model& m, const sim::State& s, size_t face_begin,
   for (size_t f = face_begin; f < face_end; ++f) {
     const int32_t a = m.face_vert[3 * f], b = m.face_vert[3 * f + 1], c = m.face_vert[3 * f + 2];
     v += (s.x[a] * (s.y[b] * s.z[c] - s.z[b] * s.y[c]) - s.y[a] * (s.x[b] * s.z[c] - s.z[b] * s.x[c]) +
-          s.z[a] * (s.x[b] * s.y[c] - s.y[b] * s.x[c])) / 6;
+          s.z[a] * (s.x[b] * s.y[c] - s.y[b] * s.x[c])) /
+         6;
   }
   return v;
 }
@@ -245,9 +255,10 @@ TEST(SolidModel, ThinOrganInTwoPiecesKeepsEachPiecesVolume) {
     for (int p = 0; p < 2; ++p) worst[p] = std::max(worst[p], std::fabs(v[p] / v0[p] - 1));
     if (k == pull + hold + 250) residual_2s = residual_after_rigid(m, s);
   }
-  std::printf("CT portal vein (%s): volume change %.2f %% and %.2f %%, residual %.3f mm 2 s and %.3f mm 5 s after release\n",
-              sim::solid_plan(m.solids[0]).c_str(), 100 * worst[0], 100 * worst[1], 1e3 * residual_2s,
-              1e3 * residual_after_rigid(m, s));
+  std::printf(
+      "CT portal vein (%s): volume change %.2f %% and %.2f %%, residual %.3f mm 2 s and %.3f mm 5 s after release\n",
+      sim::solid_plan(m.solids[0]).c_str(), 100 * worst[0], 100 * worst[1], 1e3 * residual_2s,
+      1e3 * residual_after_rigid(m, s));
   EXPECT_LE(worst[0], 0.02);
   EXPECT_LE(worst[1], 0.02);
   EXPECT_LT(residual_2s, 1e-3);
@@ -275,7 +286,8 @@ TEST(SolidModel, HoldNextToAnAnchorDoesNotFling) {
   Eigen::Vector3d normal = Eigen::Vector3d::Zero();
   for (size_t f = 0; f < m.face_vert.size() / 3; ++f) {
     const int32_t* fv = &m.face_vert[3 * f];
-    if (fv[0] == va || fv[1] == va || fv[2] == va) normal += (rest(fv[1]) - rest(fv[0])).cross(rest(fv[2]) - rest(fv[0]));
+    if (fv[0] == va || fv[1] == va || fv[2] == va)
+      normal += (rest(fv[1]) - rest(fv[0])).cross(rest(fv[2]) - rest(fv[0]));
   }
   normal *= m.organs[0].rest_volume_m3 < 0 ? -1.0 : 1.0;
   normal.normalize();
@@ -301,10 +313,12 @@ TEST(SolidModel, HoldNextToAnAnchorDoesNotFling) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (int32_t v : patch) mean += Eigen::Vector3d(s.x[v], s.y[v], s.z[v]) - rest(v);
   mean /= static_cast<double>(patch.size());
-  std::printf("CT pancreas pushed 20 mm next to two anchors: held patch moved %.1f mm along the push, "
-              "largest displacement %.1f mm\n", 1e3 * mean.dot(normal), 1e3 * worst);
+  std::printf(
+      "CT pancreas pushed 20 mm next to two anchors: held patch moved %.1f mm along the push, "
+      "largest displacement %.1f mm\n",
+      1e3 * mean.dot(normal), 1e3 * worst);
   EXPECT_GT(mean.dot(normal), 0.5 * push);  // the patch follows the push
-  EXPECT_LT(worst, 1.5 * push);            // and nothing is flung (39 mm with the exact holds there)
+  EXPECT_LT(worst, 1.5 * push);             // and nothing is flung (39 mm with the exact holds there)
 }
 
 // The supported paper liver at dt 5 ms, with the region at its top to grasp.
@@ -333,7 +347,8 @@ TEST(SolidModel, EnergyNeverGrowsUnloaded) {
     if (e > prev + 1e-9 * e0) ++grew, worst = std::max(worst, (e - prev) / e0);
     prev = e;
   }
-  std::printf("solid energy: start %.4g J, end %.4g J, %d growing steps (worst %.3g of start)\n", e0, prev, grew, worst);
+  std::printf("solid energy: start %.4g J, end %.4g J, %d growing steps (worst %.3g of start)\n", e0, prev, grew,
+              worst);
   EXPECT_GT(e0, 0);
   EXPECT_EQ(grew, 0);
   EXPECT_LT(prev, 1e-3 * e0);
@@ -342,13 +357,13 @@ TEST(SolidModel, EnergyNeverGrowsUnloaded) {
 // (f) Stiff and extreme cases stay finite: E = 1 MPa, dt = 16 ms, a 100 mm pull.
 TEST(SolidModel, ExtremeCasesStayFinite) {
   for (const auto& [young, dt] : std::vector<std::pair<double, double>>{{4000.0, 16e-3}, {1e6, 16e-3}, {1e6, 4e-3}}) {
-      const PullResult r = pull_release(liver_scene("meshes/liver_2000.obj", dt, young), 0.100, {0, 1, 0});
-      std::printf("solid E %g dt %g 100 mm: reached %.1f mm, residual %.3f mm, volume %.2f %%, peak %.3f N\n", young, dt,
-                  r.reached_mm, r.residual_mm, r.volume_change_pct, r.peak_force_N);
-      EXPECT_TRUE(r.finite);
-      EXPECT_GE(r.reached_mm, 80.0);
-      EXPECT_LT(r.residual_end_mm, 2.0);
-    }
+    const PullResult r = pull_release(liver_scene("meshes/liver_2000.obj", dt, young), 0.100, {0, 1, 0});
+    std::printf("solid E %g dt %g 100 mm: reached %.1f mm, residual %.3f mm, volume %.2f %%, peak %.3f N\n", young, dt,
+                r.reached_mm, r.residual_mm, r.volume_change_pct, r.peak_force_N);
+    EXPECT_TRUE(r.finite);
+    EXPECT_GE(r.reached_mm, 80.0);
+    EXPECT_LT(r.residual_end_mm, 2.0);
+  }
 }
 
 // Organs solved on two worker threads give the same states as one thread (every organ's loads

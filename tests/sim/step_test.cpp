@@ -164,7 +164,6 @@ TEST(Step, SpringForcesAreMinusTheEnergyGradient) {
   }
 }
 
-
 double kinetic(const sim::Model& m, const sim::State& s) {
   double e = 0;
   for (int32_t v = 0; v < m.nvert; ++v)

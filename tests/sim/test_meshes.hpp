@@ -14,7 +14,7 @@ struct Mesh {
   std::vector<int32_t> F;  // #F*3
 };
 
-Mesh icosphere(int subdivisions, double radius);  // level 2: 162 v / 320 f (paper 000 sphere)
+Mesh icosphere(int subdivisions, double radius);   // level 2: 162 v / 320 f (paper 000 sphere)
 Mesh cube(double side);                            // 8 v / 12 f, outward
 Mesh plane_grid(int n, double size);               // n x n quads split in triangles, z = 0
 Mesh read_obj(const std::string& path);            // v / f lines only

@@ -30,10 +30,10 @@ void flat_grid(int n, double L, std::vector<double>& V, std::vector<int32_t>& F)
 // Icosphere: icosahedron subdivided `level` times, projected on the sphere of radius r.
 void icosphere(int level, double r, std::vector<double>& V, std::vector<int32_t>& F) {
   const double t = (1.0 + std::sqrt(5.0)) / 2.0;
-  V = {-1, t, 0, 1, t, 0, -1, -t, 0, 1, -t, 0, 0, -1, t, 0, 1, t,
-       0, -1, -t, 0, 1, -t, t, 0, -1, t, 0, 1, -t, 0, -1, -t, 0, 1};
-  F = {0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11, 4, 11, 10, 2, 10, 7, 6, 7, 1, 8,
-       3, 9, 4, 3, 4, 2, 3, 2, 6, 3, 6, 8, 3, 8, 9, 4, 9, 5, 2, 4, 11, 6, 2, 10, 8, 6, 7, 9, 8, 1};
+  V = {-1, t,  0,  1, t, 0,  -1, -t, 0,  1, -t, 0, 0,  -1, t,  0,  1, t,
+       0,  -1, -t, 0, 1, -t, t,  0,  -1, t, 0,  1, -t, 0,  -1, -t, 0, 1};
+  F = {0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11, 4,  11, 10, 2,  10, 7, 6, 7, 1, 8,
+       3, 9,  4, 3, 4, 2, 3, 2, 6, 3, 6, 8,  3, 8,  9,  4, 9, 5, 2, 4,  11, 6,  2,  10, 8,  6, 7, 9, 8, 1};
   for (int l = 0; l < level; ++l) {
     std::map<std::pair<int32_t, int32_t>, int32_t> mid;
     auto midpoint = [&](int32_t a, int32_t b) {
@@ -92,8 +92,8 @@ TEST(Tmm, UniformPlaneStrainEnergyMatchesPlaneStressFormula) {
   // Plane stress: W = t A (mu eps:eps + lambda*/2 tr(eps)^2), lambda* = E nu / (1 - nu^2).
   const double E = p.young_modulus_pa, nu = p.poisson_ratio, mu = E / (2 * (1 + nu));
   const double lam = E * nu / (1 - nu * nu);
-  const double expected = p.thickness_m * L * L *
-                          (mu * (exx * exx + eyy * eyy + 2 * exy * exy) + 0.5 * lam * (exx + eyy) * (exx + eyy));
+  const double expected =
+      p.thickness_m * L * L * (mu * (exx * exx + eyy * eyy + 2 * exy * exy) + 0.5 * lam * (exx + eyy) * (exx + eyy));
   EXPECT_NEAR(energy, expected, 1e-12 * expected);
   // Interior nodes carry no force under a uniform strain (patch test).
   const int32_t interior = 2 + 5 * 2;  // node (2, 2) of the 5 x 5 grid

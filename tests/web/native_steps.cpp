@@ -30,7 +30,8 @@ sim::SceneDesc read_scene(const char* path) {
   const json j = json::parse(in);
   const json& s = j.at("settings");
   sim::SceneDesc d;
-  if (!sim::parse_integrator(s.at("integrator").get<std::string>(), d.integrator)) throw std::runtime_error("integrator");
+  if (!sim::parse_integrator(s.at("integrator").get<std::string>(), d.integrator))
+    throw std::runtime_error("integrator");
   d.dt_s = s.at("dt_s");
   d.gravity = s.at("gravity");
   d.gravity_m_s2 = s.at("gravity_m_s2");
@@ -54,12 +55,19 @@ sim::SceneDesc read_scene(const char* path) {
     od.material.elastica_p = m.at("elastica_p");
     sim::Material& t = od.material;
     for (auto [name, field] : {std::pair<const char*, double*>{"young_modulus_pa", &t.young_modulus_pa},
-                               {"thickness_m", &t.thickness_m}, {"total_mass_kg", &t.total_mass_kg},
-                               {"density_kg_m3", &t.density_kg_m3}, {"stiffness", &t.stiffness},
-                               {"damping", &t.damping}, {"damping_scale", &t.damping_scale},
-                               {"vertex_mass_kg", &t.vertex_mass_kg}, {"elastica_a", &t.elastica_a},
-                               {"elastica_b", &t.elastica_b}, {"curvature_unit_m", &t.curvature_unit_m},
-                               {"elastica_cap", &t.elastica_cap}, {"tau_s", &t.tau_s}, {"tau_c", &t.tau_c},
+                               {"thickness_m", &t.thickness_m},
+                               {"total_mass_kg", &t.total_mass_kg},
+                               {"density_kg_m3", &t.density_kg_m3},
+                               {"stiffness", &t.stiffness},
+                               {"damping", &t.damping},
+                               {"damping_scale", &t.damping_scale},
+                               {"vertex_mass_kg", &t.vertex_mass_kg},
+                               {"elastica_a", &t.elastica_a},
+                               {"elastica_b", &t.elastica_b},
+                               {"curvature_unit_m", &t.curvature_unit_m},
+                               {"elastica_cap", &t.elastica_cap},
+                               {"tau_s", &t.tau_s},
+                               {"tau_c", &t.tau_c},
                                {"flexion_stiffness", &t.flexion_stiffness},
                                {"volume_stiffness", &t.volume_stiffness}})
       *field = m.at(name).get<double>();
@@ -106,8 +114,9 @@ int main(int argc, char** argv) {
     const std::array<double, 3> reaction = sim::tool_reaction(state);
     sim::release(state);
     for (int i = 0; i < free_steps; ++i) sim::step(model, state, work);
-    std::printf("{\"point\": [%.17g, %.17g, %.17g], \"grabbed\": %zu, \"reaction\": [%.17g, %.17g, %.17g], \"organs\": {",
-                px, py, pz, verts.size(), reaction[0], reaction[1], reaction[2]);
+    std::printf(
+        "{\"point\": [%.17g, %.17g, %.17g], \"grabbed\": %zu, \"reaction\": [%.17g, %.17g, %.17g], \"organs\": {", px,
+        py, pz, verts.size(), reaction[0], reaction[1], reaction[2]);
     std::vector<double> pos;
     for (size_t o = 0; o < model.organs.size(); ++o) {
       sim::organ_positions(model, state, static_cast<int32_t>(o), pos);

@@ -92,9 +92,9 @@ void sa_reset() {
 
 // Scene settings; integrator is "verlet" | "semi-implicit" | "implicit". Returns 0, or -1 with
 // sa_error() set.
-int sa_settings(const char* integrator, double dt_s, int gravity, double gx, double gy, double gz,
-                int cg_iterations, double cg_tolerance, int guard, double max_tool_force_N,
-                int max_substeps, int allow_sleep, double sleep_speed_m_s, int sleep_steps) {
+int sa_settings(const char* integrator, double dt_s, int gravity, double gx, double gy, double gz, int cg_iterations,
+                double cg_tolerance, int guard, double max_tool_force_N, int max_substeps, int allow_sleep,
+                double sleep_speed_m_s, int sleep_steps) {
   Session& s = session();
   if (!sim::parse_integrator(integrator, s.desc.integrator)) {
     s.error = std::string("scene.json: settings.integrator: unknown '") + integrator +
@@ -120,8 +120,8 @@ int sa_settings(const char* integrator, double dt_s, int gravity, double gx, dou
 // name, elastica p, and kFieldCount numbers in sa_material_fields() order). Returns the organ's
 // index in the scene, or -1 with sa_error() set.
 int sa_add_organ(const char* name, const double* vertices, int nvert, const int32_t* faces, int nface,
-                 const int32_t* fixed, int nfixed, const char* model, int elastica_p,
-                 const double* material, int shown) {
+                 const int32_t* fixed, int nfixed, const char* model, int elastica_p, const double* material,
+                 int shown) {
   Session& s = session();
   sim::OrganDesc o;
   o.name = name;
@@ -140,8 +140,7 @@ int sa_add_organ(const char* name, const double* vertices, int nvert, const int3
   return static_cast<int>(s.desc.organs.size()) - 1;
 }
 
-void sa_add_connection(int organ_a, int vertex_a, int organ_b, int vertex_b, double rest_length_m,
-                       double stiffness) {
+void sa_add_connection(int organ_a, int vertex_a, int organ_b, int vertex_b, double rest_length_m, double stiffness) {
   sim::ConnectionDesc c;
   c.organ_a = organ_a, c.vertex_a = vertex_a, c.organ_b = organ_b, c.vertex_b = vertex_b;
   c.rest_length_m = rest_length_m;

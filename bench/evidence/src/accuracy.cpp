@@ -51,7 +51,8 @@ void add_traction(const fem::TetMesh& mesh, fem::Load& load, int axis, double va
     const double* b = &mesh.nodes[3 * faces[3 * f + 1]];
     const double* c = &mesh.nodes[3 * faces[3 * f + 2]];
     const double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
-    const double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
+    const double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
+                 cz = e1[0] * e2[1] - e1[1] * e2[0];
     const double area = 0.5 * std::sqrt(cx * cx + cy * cy + cz * cz);
     for (int k = 0; k < 3; ++k)
       for (int d = 0; d < 3; ++d) load.force[3 * faces[3 * f + k] + d] += t[d] * area / 3.0;
@@ -109,8 +110,10 @@ FemSolution solve_reference(const FemModel& model, const fem::TetMesh& mesh, con
   fem::Load l = fem::make_load(model);
   fem::fix_nodes(l, region_nodes(model, fem_support(mesh)), {0, 0, 0});
   const std::vector<int32_t> tool = region_nodes(model, fem_tool_nodes(mesh, top));
-  if (load.attach) fem::fix_nodes(l, tool, load.value);
-  else fem::add_force(l, tool, load.value);
+  if (load.attach)
+    fem::fix_nodes(l, tool, load.value);
+  else
+    fem::add_force(l, tool, load.value);
   s.x = model.rest;
   fem::StaticOptions opt;
   if (quadratic) {
@@ -158,14 +161,16 @@ struct Combo {
 };
 std::vector<Combo> combos(Grid g) {
   std::vector<Combo> out;
-  const std::vector<std::string> msm = g == Grid::tiny ? std::vector<std::string>{"tmsm", "nmsm"}
-                                                       : std::vector<std::string>{"tmsm", "cmsm", "nmsm", "nmsm_p2", "flexion"};
-  const std::vector<std::string> integ = g == Grid::tiny ? std::vector<std::string>{"semi_implicit", "implicit"}
-                                                         : std::vector<std::string>{"verlet", "semi_implicit", "implicit"};
+  const std::vector<std::string> msm = g == Grid::tiny
+                                           ? std::vector<std::string>{"tmsm", "nmsm"}
+                                           : std::vector<std::string>{"tmsm", "cmsm", "nmsm", "nmsm_p2", "flexion"};
+  const std::vector<std::string> integ = g == Grid::tiny
+                                             ? std::vector<std::string>{"semi_implicit", "implicit"}
+                                             : std::vector<std::string>{"verlet", "semi_implicit", "implicit"};
   for (const auto& m : msm)
     for (const auto& i : integ) out.push_back({m, i});
   out.push_back({"tmm", "implicit"});
-  out.push_back({"solid", "implicit"});  // the atlas default (sim/solid.hpp): its own local/global solver
+  out.push_back({"solid", "implicit"});        // the atlas default (sim/solid.hpp): its own local/global solver
   out.push_back({"solid", "implicit", 8e-3});  // ... at the step the atlas runs it with (kSolidStep_s)
   return out;
 }
@@ -187,8 +192,8 @@ std::vector<size_t> pareto(const std::vector<double>& x, const std::vector<doubl
 }
 
 const std::map<std::string, int>& model_colors() {
-  static const std::map<std::string, int> c = {{"tmsm", 0}, {"cmsm", 1}, {"nmsm", 2}, {"nmsm_p2", 3},
-                                               {"flexion", 4}, {"tmm", 5}, {"fem", 6}, {"solid", 7}};
+  static const std::map<std::string, int> c = {{"tmsm", 0},    {"cmsm", 1}, {"nmsm", 2}, {"nmsm_p2", 3},
+                                               {"flexion", 4}, {"tmm", 5},  {"fem", 6},  {"solid", 7}};
   return c;
 }
 std::string integrator_marker(const std::string& i) {
@@ -201,8 +206,8 @@ std::string integrator_marker(const std::string& i) {
 // One scatter plot of a run metric against ms per step, one series per model x integrator, the
 // Pareto front of the whole cloud drawn as a dashed line; for a ratio to the reference (`ratio`:
 // 1 is right, neither direction is better) the line y = 1 instead.
-std::string metric_plot(const json& runs, const std::string& metric, const std::string& label,
-                        const std::string& title, const std::string& load_filter, bool logy, bool ratio = false) {
+std::string metric_plot(const json& runs, const std::string& metric, const std::string& label, const std::string& title,
+                        const std::string& load_filter, bool logy, bool ratio = false) {
   svg::Plot p;
   p.title = title;
   p.xlabel = "ms per step (log)";
@@ -283,8 +288,11 @@ json fem_verification(Grid grid) {
     for (int32_t i : top) uz += x[3 * i + 2] - model.rest[3 * i + 2];
     uz /= static_cast<double>(top.size());
     const double analytic = -p * lz / E;
-    out.push_back({{"case", "compressed_block_linear"}, {"quantity", "top displacement u_z (m)"},
-                   {"analytic", analytic}, {"computed", uz}, {"rel_error", std::abs(uz - analytic) / std::abs(analytic)},
+    out.push_back({{"case", "compressed_block_linear"},
+                   {"quantity", "top displacement u_z (m)"},
+                   {"analytic", analytic},
+                   {"computed", uz},
+                   {"rel_error", std::abs(uz - analytic) / std::abs(analytic)},
                    {"tets", mesh.ntet()}});
   }
   // Cantilever (L/h = 10) under a tip shear load: Timoshenko tip deflection; linear tetrahedra
@@ -311,11 +319,14 @@ json fem_verification(Grid grid) {
       uz = -uz / static_cast<double>(tip.size());
       const double I = h * h * h * h / 12.0, G = E / (2 * (1 + nu));
       const double analytic = P * L * L * L / (3 * E * I) + P * L / (5.0 / 6.0 * G * h * h);
-      out.push_back({{"case", std::string("cantilever_") + (corot ? "corotational" : "linear") + "_n" + std::to_string(n)},
-                     {"quantity", "tip deflection (m), Timoshenko beam"},
-                     {"analytic", analytic}, {"computed", uz},
-                     {"rel_error", std::abs(uz - analytic) / analytic}, {"tets", mesh.ntet()},
-                     {"cells_through_thickness", n}});
+      out.push_back(
+          {{"case", std::string("cantilever_") + (corot ? "corotational" : "linear") + "_n" + std::to_string(n)},
+           {"quantity", "tip deflection (m), Timoshenko beam"},
+           {"analytic", analytic},
+           {"computed", uz},
+           {"rel_error", std::abs(uz - analytic) / analytic},
+           {"tets", mesh.ntet()},
+           {"cells_through_thickness", n}});
     }
   }
   // The reference's element: quadratic tetrahedra, neo-Hookean, nearly incompressible. The
@@ -354,9 +365,14 @@ json fem_verification(Grid grid) {
       const double analytic = P * L * L * L / (3 * E * I) + P * L / (5.0 / 6.0 * G * h * h);
       char name[64];
       std::snprintf(name, sizeof name, "cantilever_quadratic_nu%.2f_n%d", nu, n);
-      out.push_back({{"case", name}, {"quantity", "tip deflection (m), Timoshenko beam"},
-                     {"analytic", analytic}, {"computed", uz}, {"rel_error", std::abs(uz - analytic) / analytic},
-                     {"tets", mesh.ntet()}, {"cells_through_thickness", n}, {"converged", rep.converged},
+      out.push_back({{"case", name},
+                     {"quantity", "tip deflection (m), Timoshenko beam"},
+                     {"analytic", analytic},
+                     {"computed", uz},
+                     {"rel_error", std::abs(uz - analytic) / analytic},
+                     {"tets", mesh.ntet()},
+                     {"cells_through_thickness", n},
+                     {"converged", rep.converged},
                      {"newton_iterations", rep.iterations}});
     }
   }
@@ -390,22 +406,31 @@ json run_accuracy(const Options& opt) {
   fmat.poisson_ratio = 0.49;
   fmat.elasticity = fem::Elasticity::corotational;  // the FEM-as-a-model rows (linear tetrahedra)
   const fem::QuadraticModel fmodel = fem::compile_quadratic(tets, fmat);
-  json ref_info = {{"model", "fem quadratic tetrahedra, neo-Hookean, static (Newton, consistent tangent, line search)"},
-                   {"nodes", fmodel.nnode}, {"corner_nodes", fmodel.nvertex}, {"tets", fmodel.ntet},
-                   {"young_modulus_pa", fmat.young_modulus_pa}, {"poisson_ratio", fmat.poisson_ratio},
-                   {"cell_size_m", cell}, {"support", "nodes in the lowest 15% of the height (y) held"},
-                   {"tool", "surface nodes within 12 mm of the top vertex"},
-                   {"tool_refinement", "cells of half the cell size within 18 mm of the tool, growing 0.5 m per m beyond"},
-                   {"solutions", json::array()}};
-  const std::vector<LoadCase> loads = opt.grid == Grid::tiny ? std::vector<LoadCase>{accuracy_loads(true)[1]}
-                                                             : accuracy_loads(opt.grid == Grid::quick);
+  json ref_info = {
+      {"model", "fem quadratic tetrahedra, neo-Hookean, static (Newton, consistent tangent, line search)"},
+      {"nodes", fmodel.nnode},
+      {"corner_nodes", fmodel.nvertex},
+      {"tets", fmodel.ntet},
+      {"young_modulus_pa", fmat.young_modulus_pa},
+      {"poisson_ratio", fmat.poisson_ratio},
+      {"cell_size_m", cell},
+      {"support", "nodes in the lowest 15% of the height (y) held"},
+      {"tool", "surface nodes within 12 mm of the top vertex"},
+      {"tool_refinement", "cells of half the cell size within 18 mm of the tool, growing 0.5 m per m beyond"},
+      {"solutions", json::array()}};
+  const std::vector<LoadCase> loads =
+      opt.grid == Grid::tiny ? std::vector<LoadCase>{accuracy_loads(true)[1]} : accuracy_loads(opt.grid == Grid::quick);
   std::vector<FemSolution> fem_ref;
   for (const LoadCase& load : loads) {
     progress("accuracy: FEM reference, load %s\n", load.name);
     fem_ref.push_back(solve_reference(fmodel, tets, load, top));
     const FemSolution& s = fem_ref.back();
-    json sol = {{"load", load.name}, {"seconds", s.seconds}, {"newton_iterations", s.iterations},
-                {"converged", s.converged}, {"relative_residual", s.residual}, {"reaction_N", s.reaction}};
+    json sol = {{"load", load.name},
+                {"seconds", s.seconds},
+                {"newton_iterations", s.iterations},
+                {"converged", s.converged},
+                {"relative_residual", s.residual},
+                {"reaction_N", s.reaction}};
     if (load.attach) sol["grasp_stiffness_N_per_m"] = grasp_stiffness(s.reaction, load.value);
     ref_info["solutions"].push_back(sol);
   }
@@ -428,11 +453,17 @@ json run_accuracy(const Options& opt) {
     for (size_t k = 0; k < moved.size(); ++k) moved[k] += d1[k];
     double rms = 0, mx = 0;
     position_error_mm(source.V, moved, d0, rms, mx);
-    ref_info["refinement"] = {{"load", loads[li].name}, {"cell_size_m", fine_cell}, {"tets", fine.ntet},
-                              {"nodes", fine.nnode}, {"converged", fs.converged}, {"seconds", fs.seconds},
-                              {"rms_change_mm", rms}, {"max_change_mm", mx},
-                              {"reaction_change_pct", 100.0 * std::abs(norm3(fs.reaction) - norm3(fem_ref[li].reaction)) /
-                                                          std::max(norm3(fem_ref[li].reaction), 1e-300)}};
+    ref_info["refinement"] = {
+        {"load", loads[li].name},
+        {"cell_size_m", fine_cell},
+        {"tets", fine.ntet},
+        {"nodes", fine.nnode},
+        {"converged", fs.converged},
+        {"seconds", fs.seconds},
+        {"rms_change_mm", rms},
+        {"max_change_mm", mx},
+        {"reaction_change_pct", 100.0 * std::abs(norm3(fs.reaction) - norm3(fem_ref[li].reaction)) /
+                                    std::max(norm3(fem_ref[li].reaction), 1e-300)}};
     std::fprintf(stderr, "  refinement %s: rms change %.3f mm, max %.3f mm\n", loads[li].name.c_str(), rms, mx);
   }
   result["reference"] = ref_info;
@@ -441,8 +472,8 @@ json run_accuracy(const Options& opt) {
   // first force load with coarser meshes against this reference.
   json runs = json::array();
   const std::vector<int> faces = face_counts(opt.grid);
-  const std::vector<int64_t> snap_steps = opt.grid == Grid::full ? std::vector<int64_t>{30, 300}
-                                                                 : std::vector<int64_t>{30, 300};
+  const std::vector<int64_t> snap_steps =
+      opt.grid == Grid::full ? std::vector<int64_t>{30, 300} : std::vector<int64_t>{30, 300};
   const int64_t max_steps = opt.grid == Grid::full ? 2000 : opt.grid == Grid::quick ? 1500 : 400;
   const double accel_tol = 1e-6;  // paper 000: sum |a| < 1e-6
   const double dt = 1e-3;         // 1 kHz: the haptic rate
@@ -470,18 +501,31 @@ json run_accuracy(const Options& opt) {
         try {
           sim = make_surface_simulation(surface, fixed, spec);
         } catch (const InputError& e) {
-          std::fprintf(stderr, "accuracy: %s/%s at %d faces rejected: %s\n", c.model.c_str(), c.integrator.c_str(), nf, e.what());
+          std::fprintf(stderr, "accuracy: %s/%s at %d faces rejected: %s\n", c.model.c_str(), c.integrator.c_str(), nf,
+                       e.what());
           continue;
         }
-        const Trajectory tr = run_trajectory(*sim, surface, tool, load, ref, c.dt_s, snap_steps, max_steps, accel_tol, restoration);
+        const Trajectory tr =
+            run_trajectory(*sim, surface, tool, load, ref, c.dt_s, snap_steps, max_steps, accel_tol, restoration);
         for (size_t k = 0; k < tr.snaps.size(); ++k) {
           const Snapshot& s = tr.snaps[k];
-          json r = {{"model", c.model}, {"integrator", c.integrator}, {"faces", surface.nface()},
-                    {"vertices", surface.nvert()}, {"load", load.name}, {"dt_s", c.dt_s}, {"iterations", s.iterations},
-                    {"converged", s.converged}, {"final", k + 1 == tr.snaps.size()}, {"ms_per_step", s.ms_per_step},
-                    {"rms_error_mm", s.rms_mm}, {"max_error_mm", s.max_mm}, {"volume_change_pct", s.volume_change_pct},
-                    {"reaction_N", s.reaction}, {"finite", s.finite},
-                    {"guard_actions", s.guard_actions}, {"stable_dt_s", sim->stable_dt()}};
+          json r = {{"model", c.model},
+                    {"integrator", c.integrator},
+                    {"faces", surface.nface()},
+                    {"vertices", surface.nvert()},
+                    {"load", load.name},
+                    {"dt_s", c.dt_s},
+                    {"iterations", s.iterations},
+                    {"converged", s.converged},
+                    {"final", k + 1 == tr.snaps.size()},
+                    {"ms_per_step", s.ms_per_step},
+                    {"rms_error_mm", s.rms_mm},
+                    {"max_error_mm", s.max_mm},
+                    {"volume_change_pct", s.volume_change_pct},
+                    {"reaction_N", s.reaction},
+                    {"finite", s.finite},
+                    {"guard_actions", s.guard_actions},
+                    {"stable_dt_s", sim->stable_dt()}};
           add_force_metrics(r, s);
           if (c.model == "nmsm" || c.model == "nmsm_p2") r["elastica_b"] = spec.elastica_b;
           if (k + 1 == tr.snaps.size() && tr.restored_measured) {
@@ -492,18 +536,21 @@ json run_accuracy(const Options& opt) {
           runs.push_back(r);
         }
         const Snapshot& last = tr.snaps.back();
-        std::fprintf(stderr, "  %5d faces %-10s %-8s %-14s dt %g ms  it %6lld  %.4f ms/step  rms %.3f mm  vol %+.2f%%  force %.1f%%\n",
-                     nf, load.name.c_str(), c.model.c_str(), c.integrator.c_str(), 1e3 * c.dt_s,
-                     static_cast<long long>(last.iterations), last.ms_per_step, last.rms_mm, last.volume_change_pct,
-                     last.force_error_pct);
+        std::fprintf(
+            stderr,
+            "  %5d faces %-10s %-8s %-14s dt %g ms  it %6lld  %.4f ms/step  rms %.3f mm  vol %+.2f%%  force %.1f%%\n",
+            nf, load.name.c_str(), c.model.c_str(), c.integrator.c_str(), 1e3 * c.dt_s,
+            static_cast<long long>(last.iterations), last.ms_per_step, last.rms_mm, last.volume_change_pct,
+            last.force_error_pct);
       }
     }
   }
   // The FEM as a model: implicit dynamics on coarser tetrahedra of the same liver, measured on
   // its boundary against the fine reference; and the static solve itself.
   {
-    const std::vector<double> cells = opt.grid == Grid::full ? std::vector<double>{0.028, 0.018}
-                                                             : std::vector<double>{opt.grid == Grid::tiny ? 0.035 : 0.028};
+    const std::vector<double> cells = opt.grid == Grid::full
+                                          ? std::vector<double>{0.028, 0.018}
+                                          : std::vector<double>{opt.grid == Grid::tiny ? 0.035 : 0.028};
     for (double cs : cells) {
       const fem::TetMesh coarse = tetrahedralize(source, cs, 0.002);
       for (size_t li = 0; li < loads.size(); ++li) {
@@ -524,12 +571,23 @@ json run_accuracy(const Options& opt) {
         const int64_t fem_steps = opt.grid == Grid::full ? 300 : 100;
         const Trajectory tr = run_trajectory(*sim, boundary, tool, load, ref, dt, {30}, fem_steps, accel_tol, false);
         for (const Snapshot& s : tr.snaps) {
-          json r = {{"model", "fem"}, {"integrator", "implicit"}, {"faces", boundary.nface()},
-                    {"vertices", boundary.nvert()}, {"tets", coarse.ntet()}, {"load", load.name}, {"dt_s", dt},
-                    {"iterations", s.iterations}, {"converged", s.converged}, {"final", &s == &tr.snaps.back()},
-                    {"ms_per_step", s.ms_per_step}, {"rms_error_mm", s.rms_mm}, {"max_error_mm", s.max_mm},
+          json r = {{"model", "fem"},
+                    {"integrator", "implicit"},
+                    {"faces", boundary.nface()},
+                    {"vertices", boundary.nvert()},
+                    {"tets", coarse.ntet()},
+                    {"load", load.name},
+                    {"dt_s", dt},
+                    {"iterations", s.iterations},
+                    {"converged", s.converged},
+                    {"final", &s == &tr.snaps.back()},
+                    {"ms_per_step", s.ms_per_step},
+                    {"rms_error_mm", s.rms_mm},
+                    {"max_error_mm", s.max_mm},
                     {"volume_change_pct", s.volume_change_pct},
-                    {"reaction_N", s.reaction}, {"finite", s.finite}, {"guard_actions", 0}};
+                    {"reaction_N", s.reaction},
+                    {"finite", s.finite},
+                    {"guard_actions", 0}};
           add_force_metrics(r, s);
           runs.push_back(r);
         }
@@ -551,12 +609,23 @@ json run_accuracy(const Options& opt) {
           ss.grasp_stiffness_ratio = norm3(cs_sol.reaction) / std::max(norm3(ref.reaction), 1e-300);
         }
         const double v0 = fem::mesh_volume(coarse, coarse.nodes), v1 = fem::mesh_volume(coarse, cs_sol.x);
-        json r = {{"model", "fem"}, {"integrator", "static"}, {"faces", boundary.nface()},
-                  {"vertices", boundary.nvert()}, {"tets", coarse.ntet()}, {"load", load.name}, {"dt_s", 0.0},
-                  {"iterations", cs_sol.iterations}, {"converged", cs_sol.converged}, {"final", true},
-                  {"ms_per_step", 1e3 * cs_sol.seconds}, {"rms_error_mm", rms}, {"max_error_mm", mx},
+        json r = {{"model", "fem"},
+                  {"integrator", "static"},
+                  {"faces", boundary.nface()},
+                  {"vertices", boundary.nvert()},
+                  {"tets", coarse.ntet()},
+                  {"load", load.name},
+                  {"dt_s", 0.0},
+                  {"iterations", cs_sol.iterations},
+                  {"converged", cs_sol.converged},
+                  {"final", true},
+                  {"ms_per_step", 1e3 * cs_sol.seconds},
+                  {"rms_error_mm", rms},
+                  {"max_error_mm", mx},
                   {"volume_change_pct", 100.0 * (v1 - v0) / v0},
-                  {"reaction_N", cs_sol.reaction}, {"finite", true}, {"guard_actions", 0}};
+                  {"reaction_N", cs_sol.reaction},
+                  {"finite", true},
+                  {"guard_actions", 0}};
         add_force_metrics(r, ss);
         runs.push_back(r);
         std::fprintf(stderr, "  fem %d tets %-10s static %.1f ms rms %.3f mm\n", coarse.ntet(), load.name.c_str(),
@@ -596,10 +665,11 @@ json run_accuracy(const Options& opt) {
   std::string load_pick = loads[0].name;
   for (auto it = loads.rbegin(); it != loads.rend(); ++it)
     if (it->attach || it->name == main_load) load_pick = it->name;
-  if (std::any_of(loads.begin(), loads.end(), [&](const LoadCase& l) { return l.name == main_load; })) load_pick = main_load;
+  if (std::any_of(loads.begin(), loads.end(), [&](const LoadCase& l) { return l.name == main_load; }))
+    load_pick = main_load;
   std::vector<std::string> plots;
-  auto plot = [&](const std::string& file, const std::string& metric, const std::string& label, const std::string& title,
-                  const std::string& load, bool logy, bool ratio = false) {
+  auto plot = [&](const std::string& file, const std::string& metric, const std::string& label,
+                  const std::string& title, const std::string& load, bool logy, bool ratio = false) {
     write_file_atomic(opt.out_dir + "/" + file, metric_plot(runs, metric, label, title, load, logy, ratio));
     plots.push_back(file);
   };

@@ -46,9 +46,12 @@ ModelSpec apply(const std::string& model, const std::vector<Param>& ps, const st
   ModelSpec s = paper_spec(model, "semi_implicit", faces);
   for (size_t i = 0; i < ps.size(); ++i) {
     const double v = value(ps[i], u[i]);
-    if (ps[i].name == "stiffness_scale") s.young_modulus_pa *= v;
-    else if (ps[i].name == "elastica_b") s.elastica_b = v;
-    else if (ps[i].name == "flexion_stiffness") s.flexion_stiffness = v;
+    if (ps[i].name == "stiffness_scale")
+      s.young_modulus_pa *= v;
+    else if (ps[i].name == "elastica_b")
+      s.elastica_b = v;
+    else if (ps[i].name == "flexion_stiffness")
+      s.flexion_stiffness = v;
   }
   return s;
 }
@@ -123,8 +126,10 @@ std::vector<double> nelder_mead(const std::function<double(const std::vector<dou
     if (fr < fs[o[0]]) {
       const std::vector<double> xe = along(-2.0);
       const double fe = used < budget ? eval(xe) : INFINITY;
-      if (fe < fr) s[worst] = xe, fs[worst] = fe;
-      else s[worst] = xr, fs[worst] = fr;
+      if (fe < fr)
+        s[worst] = xe, fs[worst] = fe;
+      else
+        s[worst] = xr, fs[worst] = fr;
     } else if (fr < fs[o[dim - 1]]) {
       s[worst] = xr, fs[worst] = fr;
     } else {
@@ -220,17 +225,21 @@ json fit_parameters(const Options& opt, const TriMesh& source, const sim::fem::Q
     if (sim) at_rest(*sim, loads[li], refs[li], spec.dt_s, rms);
     return rms;
   };
-  const std::vector<std::string> models = full ? std::vector<std::string>{"tmsm", "nmsm", "flexion"}
-                                               : std::vector<std::string>{"tmsm", "nmsm"};
+  const std::vector<std::string> models =
+      full ? std::vector<std::string>{"tmsm", "nmsm", "flexion"} : std::vector<std::string>{"tmsm", "nmsm"};
   const int particles = full ? 8 : 6, iterations = full ? 8 : 5;
   json path = json::array();
   for (const PathPoint& p : path_points) path.push_back(p.fraction);
-  json out = {{"training_load", loads[train].name}, {"training_path_fractions", path}, {"faces", faces},
+  json out = {{"training_load", loads[train].name},
+              {"training_path_fractions", path},
+              {"faces", faces},
               {"rest_rule", "sum |a| < " + std::to_string(kRestTol).substr(0, 5) + " m/s^2 or " +
                                 std::to_string(kRestCap) + " steps"},
-              {"objective", "RMS over the training load's quasi-static path of the RMS distance (mm) to the FEM "
-                            "reference, each point at rest"},
-              {"budget_evaluations", particles * iterations}, {"models", json::array()}};
+              {"objective",
+               "RMS over the training load's quasi-static path of the RMS distance (mm) to the FEM "
+               "reference, each point at rest"},
+              {"budget_evaluations", particles * iterations},
+              {"models", json::array()}};
   svg::Plot plot;
   plot.title = "Parameter fitting: PSO (paper 003) vs Nelder-Mead, same budget";
   plot.xlabel = "objective evaluations";
@@ -250,9 +259,13 @@ json fit_parameters(const Options& opt, const TriMesh& source, const sim::fem::Q
     const bool pso_better = hp.best.back() <= hn.best.back();
     const std::vector<double>& ub = pso_better ? up : un;
     const ModelSpec fitted = apply(model, ps, ub, faces), paper = paper_spec(model, "semi_implicit", faces);
-    json m = {{"model", model}, {"pso_best_rms_mm", hp.best.back()}, {"nelder_mead_best_rms_mm", hn.best.back()},
-              {"better", pso_better ? "pso" : "nelder_mead"}, {"parameters", json::object()},
-              {"paper_path_rms_mm", path_error(paper)}, {"training_runs_stopped_by_cap", capped_training},
+    json m = {{"model", model},
+              {"pso_best_rms_mm", hp.best.back()},
+              {"nelder_mead_best_rms_mm", hn.best.back()},
+              {"better", pso_better ? "pso" : "nelder_mead"},
+              {"parameters", json::object()},
+              {"paper_path_rms_mm", path_error(paper)},
+              {"training_runs_stopped_by_cap", capped_training},
               {"test", json::array()}};
     for (size_t i = 0; i < ps.size(); ++i) {
       m["parameters"][ps[i].name] = value(ps[i], ub[i]);
@@ -260,7 +273,8 @@ json fit_parameters(const Options& opt, const TriMesh& source, const sim::fem::Q
       m["parameters_at_bound"][ps[i].name] = ub[i] <= 1e-3 || ub[i] >= 1.0 - 1e-3;
     }
     for (size_t li = 0; li < loads.size(); ++li)
-      m["test"].push_back({{"load", loads[li].name}, {"training", li == train},
+      m["test"].push_back({{"load", loads[li].name},
+                           {"training", li == train},
                            {"rms_error_mm_fitted", test_error(fitted, li)},
                            {"rms_error_mm_paper_parameters", test_error(paper, li)}});
     out["models"].push_back(m);

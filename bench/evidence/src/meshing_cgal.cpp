@@ -38,7 +38,8 @@ namespace SMS = CGAL::Surface_mesh_simplification;
 SurfaceMesh to_cgal(const TriMesh& m) {
   SurfaceMesh sm;
   std::vector<SurfaceMesh::Vertex_index> vi;
-  for (int32_t i = 0; i < m.nvert(); ++i) vi.push_back(sm.add_vertex(Point(m.V[3 * i], m.V[3 * i + 1], m.V[3 * i + 2])));
+  for (int32_t i = 0; i < m.nvert(); ++i)
+    vi.push_back(sm.add_vertex(Point(m.V[3 * i], m.V[3 * i + 1], m.V[3 * i + 2])));
   for (int32_t f = 0; f < m.nface(); ++f)
     if (sm.add_face(vi[m.F[3 * f]], vi[m.F[3 * f + 1]], vi[m.F[3 * f + 2]]) == SurfaceMesh::null_face())
       throw InputError("surface", "face " + std::to_string(f) + " makes the mesh non-manifold");
@@ -71,8 +72,8 @@ TriMesh read_surface(const std::string& path) {
   for (const auto& poly : polys) {
     if (poly.size() < 3) continue;
     for (size_t k = 1; k + 1 < poly.size(); ++k)  // fan-triangulate polygons
-      m.F.insert(m.F.end(), {static_cast<int32_t>(poly[0]), static_cast<int32_t>(poly[k]),
-                             static_cast<int32_t>(poly[k + 1])});
+      m.F.insert(m.F.end(),
+                 {static_cast<int32_t>(poly[0]), static_cast<int32_t>(poly[k]), static_cast<int32_t>(poly[k + 1])});
   }
   if (m.F.empty()) throw InputError(path, "no triangles in the file");
   return m;
@@ -92,8 +93,9 @@ TriMesh remesh_to_faces(const TriMesh& surface, int faces) {
     // Closed triangle mesh: E = 3F/2, so 3N/2 edges leave N faces (the predicate stops once the
     // count is below its threshold, hence + 1).
     SMS::Count_stop_predicate<SurfaceMesh> stop(static_cast<std::size_t>(3 * faces / 2 + 1));
-    SMS::edge_collapse(sm, stop, CGAL::parameters::get_cost(SMS::LindstromTurk_cost<SurfaceMesh>())
-                                     .get_placement(SMS::LindstromTurk_placement<SurfaceMesh>()));
+    SMS::edge_collapse(sm, stop,
+                       CGAL::parameters::get_cost(SMS::LindstromTurk_cost<SurfaceMesh>())
+                           .get_placement(SMS::LindstromTurk_placement<SurfaceMesh>()));
     sm.collect_garbage();
   }
   return from_cgal(sm);
@@ -108,7 +110,8 @@ sim::fem::TetMesh tetrahedralize(const TriMesh& surface, double cell_size, doubl
   using Criteria = CGAL::Mesh_criteria_3<Tr>;
   std::vector<Point> pts;
   std::vector<std::array<std::size_t, 3>> tris;
-  for (int32_t i = 0; i < surface.nvert(); ++i) pts.emplace_back(surface.V[3 * i], surface.V[3 * i + 1], surface.V[3 * i + 2]);
+  for (int32_t i = 0; i < surface.nvert(); ++i)
+    pts.emplace_back(surface.V[3 * i], surface.V[3 * i + 1], surface.V[3 * i + 2]);
   for (int32_t f = 0; f < surface.nface(); ++f)
     tris.push_back({static_cast<std::size_t>(surface.F[3 * f]), static_cast<std::size_t>(surface.F[3 * f + 1]),
                     static_cast<std::size_t>(surface.F[3 * f + 2])});
@@ -125,7 +128,8 @@ sim::fem::TetMesh tetrahedralize(const TriMesh& surface, double cell_size, doubl
     bool on;
     K::FT operator()(const Point& p, const int, const Domain::Index&) const {
       if (!on) return base;
-      const double d = std::sqrt(CGAL::to_double(CGAL::squared_distance(p, Point(f.centre[0], f.centre[1], f.centre[2]))));
+      const double d =
+          std::sqrt(CGAL::to_double(CGAL::squared_distance(p, Point(f.centre[0], f.centre[1], f.centre[2]))));
       return std::min(base, f.size + f.grade * std::max(0.0, d - f.radius));
     }
   };

@@ -90,22 +90,36 @@ json paper_tables(const Options& opt, const TriMesh& source) {
     const TriMesh liver = remesh_to_faces(source, 1000);
     const std::vector<int32_t> fixed = support_vertices(liver.V, kSupportFraction);
     const std::vector<int32_t> tool = nearest_face(liver, top);
-    const json paper = {
-        {"tmsm", {{"volume_change_pct", arr({-2.56, -3.61, -5.81})}, {"cpu_time_s", arr({0.416, 0.681, 0.615})},
-                  {"feedback", {arr({0.99, 0.00, 0.03}), arr({0.99, 1.00, -0.02}), arr({0.99, 1.01, 0.98})}}}},
-        {"cmsm", {{"volume_change_pct", arr({-2.00, -3.25, -3.85})}, {"cpu_time_s", arr({4.390, 4.902, 6.085})},
-                  {"feedback", {arr({0.97, 0.00, 0.00}), arr({0.97, 1.01, 0.00}), arr({1.01, 1.00, 1.05})}}}},
-        {"nmsm", {{"volume_change_pct", arr({-1.84, -2.72, -3.41})}, {"cpu_time_s", arr({2.127, 2.954, 2.486})},
-                  {"feedback", {arr({1.00, 0.00, 0.00}), arr({1.00, 1.00, -0.02}), arr({0.98, 1.01, 0.98})}}}}};
-    json t = {{"settings", {{"faces", liver.nface()}, {"vertices", liver.nvert()}, {"integrator", "verlet"}, {"dt_s", dt},
-                            {"stop", "sum|a| < 1e-6 or " + std::to_string(max_it) + " iterations"},
-                            {"cmsm", "tau_s = tau_c = 0.01"}, {"nmsm", "a = 1, b = 0.5, p = 1"},
-                            {"tool", "the 3 vertices of the face nearest the top"}}},
-              {"paper", paper}, {"ours", json::object()}};
+    const json paper = {{"tmsm",
+                         {{"volume_change_pct", arr({-2.56, -3.61, -5.81})},
+                          {"cpu_time_s", arr({0.416, 0.681, 0.615})},
+                          {"feedback", {arr({0.99, 0.00, 0.03}), arr({0.99, 1.00, -0.02}), arr({0.99, 1.01, 0.98})}}}},
+                        {"cmsm",
+                         {{"volume_change_pct", arr({-2.00, -3.25, -3.85})},
+                          {"cpu_time_s", arr({4.390, 4.902, 6.085})},
+                          {"feedback", {arr({0.97, 0.00, 0.00}), arr({0.97, 1.01, 0.00}), arr({1.01, 1.00, 1.05})}}}},
+                        {"nmsm",
+                         {{"volume_change_pct", arr({-1.84, -2.72, -3.41})},
+                          {"cpu_time_s", arr({2.127, 2.954, 2.486})},
+                          {"feedback", {arr({1.00, 0.00, 0.00}), arr({1.00, 1.00, -0.02}), arr({0.98, 1.01, 0.98})}}}}};
+    json t = {{"settings",
+               {{"faces", liver.nface()},
+                {"vertices", liver.nvert()},
+                {"integrator", "verlet"},
+                {"dt_s", dt},
+                {"stop", "sum|a| < 1e-6 or " + std::to_string(max_it) + " iterations"},
+                {"cmsm", "tau_s = tau_c = 0.01"},
+                {"nmsm", "a = 1, b = 0.5, p = 1"},
+                {"tool", "the 3 vertices of the face nearest the top"}}},
+              {"paper", paper},
+              {"ours", json::object()}};
     const std::vector<std::array<double, 3>> forces = {{1e-3, 0, 0}, {1e-3, 1e-3, 0}, {1e-3, 1e-3, 1e-3}};
     for (const std::string model : {"tmsm", "cmsm", "nmsm"}) {
-      json o = {{"volume_change_pct", json::array()}, {"cpu_time_s", json::array()}, {"feedback", json::array()},
-                {"iterations", json::array()}, {"converged", json::array()}};
+      json o = {{"volume_change_pct", json::array()},
+                {"cpu_time_s", json::array()},
+                {"feedback", json::array()},
+                {"iterations", json::array()},
+                {"converged", json::array()}};
       for (const auto& f : forces) {
         ModelSpec spec = paper_spec(model, "verlet", 1000);
         spec.dt_s = dt;
@@ -126,20 +140,26 @@ json paper_tables(const Options& opt, const TriMesh& source) {
   // ---- Table II: one face moved by [0,20,20] / [0,30,30] mm in 30 iterations ----
   {
     std::fprintf(stderr, "paper: Table II\n");
-    json t = {{"settings", {{"integrator", "verlet"}, {"dt_s", dt}, {"iterations", 30},
-                            {"nmsm", "a = 1, b = 0.5 (1000 faces), 0.2 (2000 faces), p = 1"},
-                            {"cmsm", "tau_s = 0, tau_c = 0.01"},
-                            {"tool", "the 3 vertices of the face nearest the top"}}},
-              {"paper", {{"small_1000", {{"vc_pct", arr({0.68, 0.37, 0.45})}, {"time_s", arr({0.002, 0.01, 0.003})}}},
-                         {"small_2000", {{"vc_pct", arr({0.72, 0.66, 0.60})}, {"time_s", arr({0.007, 0.019, 0.008})}}},
-                         {"large_1000", {{"vc_pct", arr({1.24, 0.91, 1.11})}, {"time_s", arr({0.002, 0.011, 0.004})}}},
-                         {"large_2000", {{"vc_pct", arr({1.23, 1.3, 1.01})}, {"time_s", arr({0.007, 0.019, 0.008})}}}}},
-              {"columns", {"tmsm", "cmsm", "nmsm"}}, {"ours", json::object()}};
+    json t = {{"settings",
+               {{"integrator", "verlet"},
+                {"dt_s", dt},
+                {"iterations", 30},
+                {"nmsm", "a = 1, b = 0.5 (1000 faces), 0.2 (2000 faces), p = 1"},
+                {"cmsm", "tau_s = 0, tau_c = 0.01"},
+                {"tool", "the 3 vertices of the face nearest the top"}}},
+              {"paper",
+               {{"small_1000", {{"vc_pct", arr({0.68, 0.37, 0.45})}, {"time_s", arr({0.002, 0.01, 0.003})}}},
+                {"small_2000", {{"vc_pct", arr({0.72, 0.66, 0.60})}, {"time_s", arr({0.007, 0.019, 0.008})}}},
+                {"large_1000", {{"vc_pct", arr({1.24, 0.91, 1.11})}, {"time_s", arr({0.002, 0.011, 0.004})}}},
+                {"large_2000", {{"vc_pct", arr({1.23, 1.3, 1.01})}, {"time_s", arr({0.007, 0.019, 0.008})}}}}},
+              {"columns", {"tmsm", "cmsm", "nmsm"}},
+              {"ours", json::object()}};
     for (int faces : {1000, 2000}) {
       const TriMesh liver = remesh_to_faces(source, faces);
       const std::vector<int32_t> fixed = support_vertices(liver.V, kSupportFraction);
       const std::vector<int32_t> tool = nearest_face(liver, top);
-      for (const auto& [label, d] : {std::make_pair(std::string("small"), 0.020), std::make_pair(std::string("large"), 0.030)}) {
+      for (const auto& [label, d] :
+           {std::make_pair(std::string("small"), 0.020), std::make_pair(std::string("large"), 0.030)}) {
         json o = {{"vc_pct", json::array()}, {"time_s", json::array()}};
         for (const std::string model : {"tmsm", "cmsm", "nmsm"}) {
           ModelSpec spec = paper_spec(model, "verlet", faces);
@@ -160,17 +180,29 @@ json paper_tables(const Options& opt, const TriMesh& source) {
   // ---- Table III: 2000..10000 faces, NMSM (a = 1, tau_s = 0.01) vs CMSM (tau_s = tau_c = 0.01) ----
   {
     std::fprintf(stderr, "paper: Table III\n");
-    const std::vector<int> faces = full ? std::vector<int>{2000, 4000, 6000, 8000, 10000} : std::vector<int>{2000, 4000};
-    json t = {{"settings", {{"integrator", "verlet"}, {"dt_s", dt}, {"iterations", 30},
-                            {"load", "the face nearest the top moved by [0, 20, 20] mm in 30 iterations (the paper "
-                                     "does not state the load of Table III)"}}},
-              {"paper", {{"faces", arr({2000, 4000, 6000, 8000, 10000})}, {"b", arr({0.3, 0.2, 0.15, 0.15, 0.15})},
-                         {"nmsm_vc_pct", arr({0.73, 0.60, 0.56, 0.49, 0.39})},
-                         {"cmsm_vc_pct", arr({0.84, 0.72, 0.66, 0.57, 0.48})},
-                         {"nmsm_time_s", arr({0.009, 0.019, 0.028, 0.037, 0.047})},
-                         {"cmsm_time_s", arr({0.011, 0.023, 0.034, 0.046, 0.056})}}},
-              {"ours", {{"faces", json::array()}, {"b", json::array()}, {"nmsm_vc_pct", json::array()},
-                        {"cmsm_vc_pct", json::array()}, {"nmsm_time_s", json::array()}, {"cmsm_time_s", json::array()}}}};
+    const std::vector<int> faces =
+        full ? std::vector<int>{2000, 4000, 6000, 8000, 10000} : std::vector<int>{2000, 4000};
+    json t = {{"settings",
+               {{"integrator", "verlet"},
+                {"dt_s", dt},
+                {"iterations", 30},
+                {"load",
+                 "the face nearest the top moved by [0, 20, 20] mm in 30 iterations (the paper "
+                 "does not state the load of Table III)"}}},
+              {"paper",
+               {{"faces", arr({2000, 4000, 6000, 8000, 10000})},
+                {"b", arr({0.3, 0.2, 0.15, 0.15, 0.15})},
+                {"nmsm_vc_pct", arr({0.73, 0.60, 0.56, 0.49, 0.39})},
+                {"cmsm_vc_pct", arr({0.84, 0.72, 0.66, 0.57, 0.48})},
+                {"nmsm_time_s", arr({0.009, 0.019, 0.028, 0.037, 0.047})},
+                {"cmsm_time_s", arr({0.011, 0.023, 0.034, 0.046, 0.056})}}},
+              {"ours",
+               {{"faces", json::array()},
+                {"b", json::array()},
+                {"nmsm_vc_pct", json::array()},
+                {"cmsm_vc_pct", json::array()},
+                {"nmsm_time_s", json::array()},
+                {"cmsm_time_s", json::array()}}}};
     for (int nf : faces) {
       const TriMesh liver = remesh_to_faces(source, nf);
       const std::vector<int32_t> fixed = support_vertices(liver.V, kSupportFraction);
@@ -197,14 +229,14 @@ json paper_tables(const Options& opt, const TriMesh& source) {
     const TriMesh sphere = icosphere(2, 1.0);
     std::vector<int32_t> fixed;
     for (int32_t i = 0; i < sphere.nvert(); ++i)
-      if (sphere.V[3 * i + 1] < -0.8) fixed.push_back(i);  // the paper does not say how it is held
+      if (sphere.V[3 * i + 1] < -0.8) fixed.push_back(i);                 // the paper does not say how it is held
     const std::vector<int32_t> tool = region(sphere.V, {0, 1, 0}, 1e-9);  // the top vertex
     auto spec_for = [&](const std::string& model, double a, double b) {
       ModelSpec s = paper_spec(model, "verlet", 320);
       s.dt_s = 1e-3;
-      s.vertex_mass_kg = 1.0;  // point-wise mass 1
-      s.stiffness = 30.0;      // k = 30
-      s.damping = 100.0;       // d = 100
+      s.vertex_mass_kg = 1.0;    // point-wise mass 1
+      s.stiffness = 30.0;        // k = 30
+      s.damping = 100.0;         // d = 100
       s.curvature_unit_m = 1.0;  // dimensionless sphere
       s.elastica_p = 2;          // p = 2 for the sphere
       s.elastica_a = a;
@@ -213,13 +245,24 @@ json paper_tables(const Options& opt, const TriMesh& source) {
       return s;
     };
     const int64_t sphere_it = full ? 20000 : 5000;
-    json t = {{"settings", {{"vertices", sphere.nvert()}, {"faces", sphere.nface()}, {"radius", 1.0},
-                            {"vertex_mass", 1.0}, {"k", 30.0}, {"d", 100.0}, {"p", 2}, {"integrator", "verlet"},
-                            {"dt", 1e-3}, {"tool", "top vertex"}, {"support", "vertices with y < -0.8 held"}}},
-              {"paper", "Figs 3-4 only (no table): nonlinearity weakens as a grows and strengthens as b grows; "
-                        "at f = [0,4,4] the volume is below the rest volume for a < 30 and the NMSM keeps more "
-                        "volume than the TMSM; run time falls as a grows"},
-              {"force_displacement", json::array()}, {"volume_vs_a", json::array()}};
+    json t = {{"settings",
+               {{"vertices", sphere.nvert()},
+                {"faces", sphere.nface()},
+                {"radius", 1.0},
+                {"vertex_mass", 1.0},
+                {"k", 30.0},
+                {"d", 100.0},
+                {"p", 2},
+                {"integrator", "verlet"},
+                {"dt", 1e-3},
+                {"tool", "top vertex"},
+                {"support", "vertices with y < -0.8 held"}}},
+              {"paper",
+               "Figs 3-4 only (no table): nonlinearity weakens as a grows and strengthens as b grows; "
+               "at f = [0,4,4] the volume is below the rest volume for a < 30 and the NMSM keeps more "
+               "volume than the TMSM; run time falls as a grows"},
+              {"force_displacement", json::array()},
+              {"volume_vs_a", json::array()}};
     svg::Plot fd;
     fd.title = "Sphere: force-displacement (paper 000 Fig 3 setting)";
     fd.xlabel = "force |f| (f = [0, s, s])";
@@ -230,7 +273,8 @@ json paper_tables(const Options& opt, const TriMesh& source) {
     for (const auto& [a, b] : ab) {
       const std::string model = b == 0 ? "tmsm" : "nmsm";
       svg::Series s;
-      s.name = b == 0 ? "TMSM" : "NMSM a=" + std::to_string(static_cast<int>(a)) + " b=" + std::to_string(static_cast<int>(b));
+      s.name = b == 0 ? "TMSM"
+                      : "NMSM a=" + std::to_string(static_cast<int>(a)) + " b=" + std::to_string(static_cast<int>(b));
       s.color = svg::color(color++);
       s.line = true;
       for (int f = 1; f <= 10; f += full ? 1 : 3) {
@@ -239,9 +283,14 @@ json paper_tables(const Options& opt, const TriMesh& source) {
         const Measured m = run(*sim, sphere, 1, sphere_it, tol, 1e-3);
         s.x.push_back(std::sqrt(2.0) * f);
         s.y.push_back(m.mean_disp);
-        t["force_displacement"].push_back({{"model", model}, {"a", a}, {"b", b}, {"force", {0, f, f}},
-                                           {"mean_displacement", m.mean_disp}, {"iterations", m.iterations},
-                                           {"converged", m.converged}, {"finite", m.finite}});
+        t["force_displacement"].push_back({{"model", model},
+                                           {"a", a},
+                                           {"b", b},
+                                           {"force", {0, f, f}},
+                                           {"mean_displacement", m.mean_disp},
+                                           {"iterations", m.iterations},
+                                           {"converged", m.converged},
+                                           {"finite", m.finite}});
       }
       fd.series.push_back(s);
     }
@@ -267,8 +316,12 @@ json paper_tables(const Options& opt, const TriMesh& source) {
         const Measured m = run(*sim, sphere, 1, sphere_it, tol, 1e-3);
         s.x.push_back(a);
         s.y.push_back(m.volume_change_pct);
-        t["volume_vs_a"].push_back({{"a", a}, {"b", b}, {"volume_change_pct", m.volume_change_pct},
-                                    {"cpu_time_s", m.seconds}, {"iterations", m.iterations}, {"converged", m.converged}});
+        t["volume_vs_a"].push_back({{"a", a},
+                                    {"b", b},
+                                    {"volume_change_pct", m.volume_change_pct},
+                                    {"cpu_time_s", m.seconds},
+                                    {"iterations", m.iterations},
+                                    {"converged", m.converged}});
       }
       va.series.push_back(s);
     }

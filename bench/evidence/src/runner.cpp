@@ -70,12 +70,18 @@ class MassSpring final : public Simulation {
     organ.fixed = fixed;
     sim::Material& m = organ.material;
     const std::string& name = spec.model;
-    if (name == "tmsm") m.model = sim::ModelKind::tmsm;
-    else if (name == "cmsm") m.model = sim::ModelKind::cmsm;
-    else if (name == "nmsm" || name == "nmsm_p2") m.model = sim::ModelKind::nmsm;
-    else if (name == "flexion") m.model = sim::ModelKind::flexion;
-    else if (name == "solid") m.model = sim::ModelKind::solid;
-    else throw InputError("model", "unknown mass-spring model '" + name + "'");
+    if (name == "tmsm")
+      m.model = sim::ModelKind::tmsm;
+    else if (name == "cmsm")
+      m.model = sim::ModelKind::cmsm;
+    else if (name == "nmsm" || name == "nmsm_p2")
+      m.model = sim::ModelKind::nmsm;
+    else if (name == "flexion")
+      m.model = sim::ModelKind::flexion;
+    else if (name == "solid")
+      m.model = sim::ModelKind::solid;
+    else
+      throw InputError("model", "unknown mass-spring model '" + name + "'");
     m.young_modulus_pa = spec.young_modulus_pa;
     m.thickness_m = spec.thickness_m;
     m.total_mass_kg = spec.total_mass_kg;
@@ -173,8 +179,10 @@ class TensorMass final : public Simulation {
     good_ = state_;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (int32_t i = 0; i < surface.nvert(); ++i)
-      for (int c = 0; c < 3; ++c) lo[c] = std::min(lo[c], surface.V[3 * i + c]), hi[c] = std::max(hi[c], surface.V[3 * i + c]);
-    size_ = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) + (hi[2] - lo[2]) * (hi[2] - lo[2]));
+      for (int c = 0; c < 3; ++c)
+        lo[c] = std::min(lo[c], surface.V[3 * i + c]), hi[c] = std::max(hi[c], surface.V[3 * i + c]);
+    size_ = std::sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                      (hi[2] - lo[2]) * (hi[2] - lo[2]));
   }
   void pull(const std::vector<int32_t>& verts, const std::array<double, 3>& f) override {
     std::array<double, 3> force = f;
@@ -342,7 +350,8 @@ class FemDynamics final : public Simulation {
       for (int a = 0; a < 3; ++a)
         for (int c = 0; c < 3; ++c) d[a][c] = state_.x[3 * n[a + 1] + c] - state_.x[3 * n[0] + c];
       v += (d[0][0] * (d[1][1] * d[2][2] - d[1][2] * d[2][1]) - d[0][1] * (d[1][0] * d[2][2] - d[1][2] * d[2][0]) +
-            d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0])) / 6.0;
+            d[0][2] * (d[1][0] * d[2][1] - d[1][1] * d[2][0])) /
+           6.0;
     }
     return v;
   }

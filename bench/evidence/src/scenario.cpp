@@ -12,10 +12,10 @@ namespace softatlas::evidence {
 TriMesh icosphere(int level, double radius) {
   const double t = (1.0 + std::sqrt(5.0)) / 2.0;
   TriMesh m;
-  m.V = {-1, t, 0, 1, t, 0, -1, -t, 0, 1, -t, 0, 0, -1, t, 0, 1, t,
-         0, -1, -t, 0, 1, -t, t, 0, -1, t, 0, 1, -t, 0, -1, -t, 0, 1};
-  m.F = {0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11, 4, 11, 10, 2, 10, 7, 6, 7, 1, 8,
-         3, 9, 4, 3, 4, 2, 3, 2, 6, 3, 6, 8, 3, 8, 9, 4, 9, 5, 2, 4, 11, 6, 2, 10, 8, 6, 7, 9, 8, 1};
+  m.V = {-1, t,  0,  1, t, 0,  -1, -t, 0,  1, -t, 0, 0,  -1, t,  0,  1, t,
+         0,  -1, -t, 0, 1, -t, t,  0,  -1, t, 0,  1, -t, 0,  -1, -t, 0, 1};
+  m.F = {0, 11, 5, 0, 5, 1, 0, 1, 7, 0, 7, 10, 0, 10, 11, 1, 5, 9, 5, 11, 4,  11, 10, 2,  10, 7, 6, 7, 1, 8,
+         3, 9,  4, 3, 4, 2, 3, 2, 6, 3, 6, 8,  3, 8,  9,  4, 9, 5, 2, 4,  11, 6,  2,  10, 8,  6, 7, 9, 8, 1};
   for (int l = 0; l < level; ++l) {
     std::map<std::pair<int32_t, int32_t>, int32_t> mid;
     auto midpoint = [&](int32_t a, int32_t b) {
@@ -36,7 +36,8 @@ TriMesh icosphere(int level, double radius) {
     m.F = out;
   }
   for (int32_t i = 0; i < m.nvert(); ++i) {
-    const double n = std::sqrt(m.V[3 * i] * m.V[3 * i] + m.V[3 * i + 1] * m.V[3 * i + 1] + m.V[3 * i + 2] * m.V[3 * i + 2]);
+    const double n =
+        std::sqrt(m.V[3 * i] * m.V[3 * i] + m.V[3 * i + 1] * m.V[3 * i + 1] + m.V[3 * i + 2] * m.V[3 * i + 2]);
     for (int c = 0; c < 3; ++c) m.V[3 * i + c] *= radius / n;
   }
   return m;
@@ -48,7 +49,9 @@ double enclosed_volume(const TriMesh& m) {
     const double* a = &m.V[3 * m.F[3 * f]];
     const double* b = &m.V[3 * m.F[3 * f + 1]];
     const double* c = &m.V[3 * m.F[3 * f + 2]];
-    v += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0;
+    v +=
+        (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) /
+        6.0;
   }
   return v;
 }
@@ -117,12 +120,9 @@ std::vector<LoadCase> accuracy_loads(bool quick) {
   // Paper 000 Table I forces (x 1e-3 N) and Table II displacements ([0, 20, 20], [0, 30, 30] mm
   // over 30 iterations), and the large 50 mm pull (upwards, +y).
   std::vector<LoadCase> all = {
-      {"force_100", false, {1e-3, 0, 0}, 0},
-      {"force_110", false, {1e-3, 1e-3, 0}, 0},
-      {"force_111", false, {1e-3, 1e-3, 1e-3}, 0},
-      {"attach_20", true, {0, 0.020, 0.020}, 30},
-      {"attach_30", true, {0, 0.030, 0.030}, 30},
-      {"pull_50mm", true, {0, 0.050, 0}, 30},
+      {"force_100", false, {1e-3, 0, 0}, 0},       {"force_110", false, {1e-3, 1e-3, 0}, 0},
+      {"force_111", false, {1e-3, 1e-3, 1e-3}, 0}, {"attach_20", true, {0, 0.020, 0.020}, 30},
+      {"attach_30", true, {0, 0.030, 0.030}, 30},  {"pull_50mm", true, {0, 0.050, 0}, 30},
   };
   if (quick) return {all[2], all[3], all[5]};
   return all;

@@ -58,10 +58,10 @@ TriMesh degrade(const TriMesh& good, const std::string& kind) {
 json run_stability(const Options& opt) {
   const auto t_start = std::chrono::steady_clock::now();
   const bool full = opt.grid == Grid::full, tiny = opt.grid == Grid::tiny;
-  const std::vector<double> stiffness = full ? std::vector<double>{1, 10, 100, 1e3, 1e4, 1e5, 1e6}
+  const std::vector<double> stiffness = full   ? std::vector<double>{1, 10, 100, 1e3, 1e4, 1e5, 1e6}
                                         : tiny ? std::vector<double>{1, 1e6}
                                                : std::vector<double>{1, 100, 1e4, 1e6};
-  const std::vector<double> dts = full ? std::vector<double>{1e-5, 1e-4, 1e-3, 1e-2, 1e-1}
+  const std::vector<double> dts = full   ? std::vector<double>{1e-5, 1e-4, 1e-3, 1e-2, 1e-1}
                                   : tiny ? std::vector<double>{1e-4, 1e-2}
                                          : std::vector<double>{1e-4, 1e-3, 1e-2, 1e-1};
   struct Load {
@@ -71,16 +71,19 @@ json run_stability(const Options& opt) {
     double perturb_m = 0.0;  // > 0: no load, rest plus this random perturbation (self-excitation)
   };
   const Load unloaded{"rest_perturbed", false, {0, 0, 0}, 1e-6};
-  const std::vector<Load> loads = full ? std::vector<Load>{{"force_1N", false, {0, 1, 0}}, {"force_10N", false, {0, 10, 0}},
-                                                           {"pull_10mm", true, {0, 0.01, 0}}, {"pull_100mm", true, {0, 0.1, 0}},
-                                                           unloaded}
-                                       : std::vector<Load>{{"force_10N", false, {0, 10, 0}}, {"pull_100mm", true, {0, 0.1, 0}},
-                                                           unloaded};
-  const std::vector<std::string> meshes = full || !tiny ? std::vector<std::string>{"good", "sliver", "short_edge", "flipped"}
-                                                        : std::vector<std::string>{"good", "flipped"};
+  const std::vector<Load> loads =
+      full ? std::vector<Load>{{"force_1N", false, {0, 1, 0}},
+                               {"force_10N", false, {0, 10, 0}},
+                               {"pull_10mm", true, {0, 0.01, 0}},
+                               {"pull_100mm", true, {0, 0.1, 0}},
+                               unloaded}
+           : std::vector<Load>{{"force_10N", false, {0, 10, 0}}, {"pull_100mm", true, {0, 0.1, 0}}, unloaded};
+  const std::vector<std::string> meshes = full || !tiny
+                                              ? std::vector<std::string>{"good", "sliver", "short_edge", "flipped"}
+                                              : std::vector<std::string>{"good", "flipped"};
   std::vector<std::pair<std::string, std::string>> combos;
-  const std::vector<std::string> models = full ? std::vector<std::string>{"tmsm", "cmsm", "nmsm", "flexion"}
-                                          : std::vector<std::string>{"tmsm", "nmsm"};
+  const std::vector<std::string> models =
+      full ? std::vector<std::string>{"tmsm", "cmsm", "nmsm", "flexion"} : std::vector<std::string>{"tmsm", "nmsm"};
   const std::vector<std::string> integ = tiny ? std::vector<std::string>{"semi_implicit", "implicit"}
                                               : std::vector<std::string>{"verlet", "semi_implicit", "implicit"};
   for (const auto& m : models)
@@ -120,8 +123,8 @@ json run_stability(const Options& opt) {
                 spec.stiffness = k;
               }
               if (model == "flexion") spec.flexion_stiffness = 1e-4 * k;
-              json cell = {{"model", model}, {"integrator", integrator}, {"stiffness", k}, {"dt", dt},
-                           {"load", load.name}, {"mesh", mesh_kind}, {"guard", guard}};
+              json cell = {{"model", model},    {"integrator", integrator}, {"stiffness", k}, {"dt", dt},
+                           {"load", load.name}, {"mesh", mesh_kind},        {"guard", guard}};
               std::unique_ptr<Simulation> sim;
               try {
                 sim = make_surface_simulation(mesh, fixed, spec);
@@ -157,7 +160,8 @@ json run_stability(const Options& opt) {
               double maxd = 0.0;
               for (size_t q = 0; q < x.size() / 3; ++q) {
                 double d2 = 0;
-                for (int c = 0; c < 3; ++c) d2 += (x[3 * q + c] - mesh.V[3 * q + c]) * (x[3 * q + c] - mesh.V[3 * q + c]);
+                for (int c = 0; c < 3; ++c)
+                  d2 += (x[3 * q + c] - mesh.V[3 * q + c]) * (x[3 * q + c] - mesh.V[3 * q + c]);
                 if (!std::isfinite(d2)) finite = false;
                 maxd = std::max(maxd, std::sqrt(d2));
               }
@@ -169,13 +173,17 @@ json run_stability(const Options& opt) {
               // Unloaded from a perturbed rest no work is done on the model: its energy may only
               // fall, and nothing may move far beyond the perturbation (self-excitation: the
               // NMSM drift of issue 13 moved vertices by millimetres).
-              const bool self_excited = load.perturb_m > 0 && finite &&
-                                        (e_end > 1.1 * e_start + 1e-15 || maxd > 100.0 * load.perturb_m);
+              const bool self_excited =
+                  load.perturb_m > 0 && finite && (e_end > 1.1 * e_start + 1e-15 || maxd > 100.0 * load.perturb_m);
               std::string outcome;
-              if (!finite) outcome = "non-finite";
-              else if (drift > 10.0 || maxd > 1e3 * diameter || self_excited) outcome = "diverged";  // numerical runaway
-              else if (guard_actions > 0) outcome = "guarded";
-              else outcome = "stable";
+              if (!finite)
+                outcome = "non-finite";
+              else if (drift > 10.0 || maxd > 1e3 * diameter || self_excited)
+                outcome = "diverged";  // numerical runaway
+              else if (guard_actions > 0)
+                outcome = "guarded";
+              else
+                outcome = "stable";
               cell["outcome"] = outcome;
               cell["energy_drift"] = std::isfinite(drift) ? json(drift) : json(nullptr);
               cell["guard_actions"] = guard_actions;
@@ -192,12 +200,15 @@ json run_stability(const Options& opt) {
   json summary = {{"guard_off", off}, {"guard_on", on}, {"cells", cells.size()}, {"rejected_meshes", rejected.size()}};
   double worst_drift_on = -INFINITY;
   for (const auto& c : cells)
-    if (c["guard"].get<bool>() && c["energy_drift"].is_number()) worst_drift_on = std::max(worst_drift_on, c["energy_drift"].get<double>());
+    if (c["guard"].get<bool>() && c["energy_drift"].is_number())
+      worst_drift_on = std::max(worst_drift_on, c["energy_drift"].get<double>());
   summary["max_energy_drift_guard_on"] = worst_drift_on;
   // Heat maps: stiffness x dt per model/integrator, worst outcome over loads and meshes.
   const std::vector<std::string> order = {"stable", "guarded", "diverged", "non-finite"};
   svg::Legend legend{order, {"#59a14f", "#edc948", "#f28e2b", "#e15759"}};
-  auto rank = [&](const std::string& o) { return static_cast<int>(std::find(order.begin(), order.end(), o) - order.begin()); };
+  auto rank = [&](const std::string& o) {
+    return static_cast<int>(std::find(order.begin(), order.end(), o) - order.begin());
+  };
   std::vector<std::string> xl, yl;
   for (double k : stiffness) {
     char b[32];
@@ -220,7 +231,8 @@ json run_stability(const Options& opt) {
       h.cells.assign(xl.size() * yl.size(), -1);
       for (const auto& c : cells) {
         if (c["model"] != model || c["integrator"] != integrator || c["guard"].get<bool>() != guard) continue;
-        const size_t ix = std::find(stiffness.begin(), stiffness.end(), c["stiffness"].get<double>()) - stiffness.begin();
+        const size_t ix =
+            std::find(stiffness.begin(), stiffness.end(), c["stiffness"].get<double>()) - stiffness.begin();
         const size_t iy = std::find(dts.begin(), dts.end(), c["dt"].get<double>()) - dts.begin();
         int& cell = h.cells[iy * xl.size() + ix];
         cell = std::max(cell, rank(c["outcome"]));
@@ -228,11 +240,10 @@ json run_stability(const Options& opt) {
       maps.push_back(h);
     }
     const std::string file = guard ? "stability_guard_on.svg" : "stability_guard_off.svg";
-    write_file_atomic(opt.out_dir + "/" + file,
-                      svg::render(maps, legend, 3,
-                                  std::string("Stability, guard ") + (guard ? "on" : "off") +
-                                      " (worst outcome over loads and meshes)",
-                                  "spring stiffness k (N/m)", "time step dt (s)"));
+    write_file_atomic(opt.out_dir + "/" + file, svg::render(maps, legend, 3,
+                                                            std::string("Stability, guard ") + (guard ? "on" : "off") +
+                                                                " (worst outcome over loads and meshes)",
+                                                            "spring stiffness k (N/m)", "time step dt (s)"));
     files.push_back(file);
   }
   {
@@ -255,14 +266,21 @@ json run_stability(const Options& opt) {
       }
       maps.push_back(h);
     }
-    write_file_atomic(opt.out_dir + "/stability_mesh_load_guard_off.svg",
-                      svg::render(maps, legend, 3, "Stability by mesh quality and load, guard off (worst over k and dt)",
-                                  "mesh", "load"));
+    write_file_atomic(
+        opt.out_dir + "/stability_mesh_load_guard_off.svg",
+        svg::render(maps, legend, 3, "Stability by mesh quality and load, guard off (worst over k and dt)", "mesh",
+                    "load"));
     files.push_back("stability_mesh_load_guard_off.svg");
   }
-  json result = {{"command", "bench stability"}, {"grid", full ? "full" : tiny ? "tiny" : "quick"},
+  json result = {{"command", "bench stability"},
+                 {"grid", full   ? "full"
+                          : tiny ? "tiny"
+                                 : "quick"},
                  {"organ", "icosphere 162 vertices / 320 faces, radius 50 mm, density 1060 kg/m^3, y < -40 mm held"},
-                 {"steps_per_cell", steps}, {"summary", summary}, {"cells", cells}, {"rejected", rejected},
+                 {"steps_per_cell", steps},
+                 {"summary", summary},
+                 {"cells", cells},
+                 {"rejected", rejected},
                  {"plots", files}};
   result["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return result;

@@ -12,11 +12,16 @@ namespace {
 std::string esc(const std::string& s) {
   std::string o;
   for (char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else if (c == '"') o += "&quot;";
-    else o += c;
+    if (c == '<')
+      o += "&lt;";
+    else if (c == '>')
+      o += "&gt;";
+    else if (c == '&')
+      o += "&amp;";
+    else if (c == '"')
+      o += "&quot;";
+    else
+      o += c;
   }
   return o;
 }
@@ -30,8 +35,10 @@ std::string num(double v) {
 std::string tick_label(double v) {
   char b[32];
   const double a = std::abs(v);
-  if (a != 0 && (a < 1e-3 || a >= 1e5)) std::snprintf(b, sizeof b, "%.0e", v);
-  else std::snprintf(b, sizeof b, "%g", v);
+  if (a != 0 && (a < 1e-3 || a >= 1e5))
+    std::snprintf(b, sizeof b, "%.0e", v);
+  else
+    std::snprintf(b, sizeof b, "%g", v);
   return b;
 }
 
@@ -39,8 +46,8 @@ void marker(std::ostringstream& o, const std::string& kind, double x, double y, 
   const double r = 4.5;
   if (kind == "none") return;
   if (kind == "square") {
-    o << "<rect x='" << num(x - r) << "' y='" << num(y - r) << "' width='" << num(2 * r) << "' height='"
-      << num(2 * r) << "' fill='" << color << "' fill-opacity='0.8' stroke='#333' stroke-width='0.5'/>\n";
+    o << "<rect x='" << num(x - r) << "' y='" << num(y - r) << "' width='" << num(2 * r) << "' height='" << num(2 * r)
+      << "' fill='" << color << "' fill-opacity='0.8' stroke='#333' stroke-width='0.5'/>\n";
   } else if (kind == "triangle") {
     o << "<polygon points='" << num(x) << "," << num(y - r - 1) << " " << num(x - r) << "," << num(y + r) << " "
       << num(x + r) << "," << num(y + r) << "' fill='" << color
@@ -78,13 +85,21 @@ std::string render(const Plot& p) {
   if (!(y0 <= y1)) y0 = 0, y1 = 1;
   if (p.logx) x0 = std::floor(x0), x1 = std::max(std::ceil(x1), x0 + 1);
   if (p.logy) y0 = std::floor(y0), y1 = std::max(std::ceil(y1), y0 + 1);
-  if (!p.logx) { const double m = 0.05 * std::max(x1 - x0, 1e-12); x0 -= m; x1 += m; }
-  if (!p.logy) { const double m = 0.05 * std::max(y1 - y0, 1e-12); y0 -= m; y1 += m; }
+  if (!p.logx) {
+    const double m = 0.05 * std::max(x1 - x0, 1e-12);
+    x0 -= m;
+    x1 += m;
+  }
+  if (!p.logy) {
+    const double m = 0.05 * std::max(y1 - y0, 1e-12);
+    y0 -= m;
+    y1 += m;
+  }
   auto X = [&](double v) { return L + pw * ((p.logx ? std::log10(v) : v) - x0) / (x1 - x0); };
   auto Y = [&](double v) { return T + ph * (1.0 - ((p.logy ? std::log10(v) : v) - y0) / (y1 - y0)); };
   std::ostringstream o;
-  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H << "' viewBox='0 0 " << W << " "
-    << H << "' font-family='Helvetica,Arial,sans-serif' font-size='12'>\n";
+  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H << "' viewBox='0 0 " << W << " " << H
+    << "' font-family='Helvetica,Arial,sans-serif' font-size='12'>\n";
   o << "<rect width='100%' height='100%' fill='white'/>\n";
   o << "<text x='" << num(L + pw / 2) << "' y='22' text-anchor='middle' font-size='15'>" << esc(p.title) << "</text>\n";
   // Axes and ticks.
@@ -95,7 +110,8 @@ std::string render(const Plot& p) {
     } else {
       const double span = b - a, raw = span / 6, mag = std::pow(10.0, std::floor(std::log10(raw)));
       const double step = raw / mag < 2 ? 2 * mag : raw / mag < 5 ? 5 * mag : 10 * mag;
-      for (double v = std::ceil(a / step) * step; v <= b + 1e-12; v += step) t.push_back(std::abs(v) < 1e-12 * step ? 0 : v);
+      for (double v = std::ceil(a / step) * step; v <= b + 1e-12; v += step)
+        t.push_back(std::abs(v) < 1e-12 * step ? 0 : v);
     }
     return t;
   };
@@ -113,7 +129,8 @@ std::string render(const Plot& p) {
       << "' stroke='#ddd'/>\n<text x='" << num(L - 6) << "' y='" << num(y + 4) << "' text-anchor='end'>"
       << tick_label(t) << "</text>\n";
   }
-  o << "<text x='" << num(L + pw / 2) << "' y='" << num(H - 18) << "' text-anchor='middle'>" << esc(p.xlabel) << "</text>\n";
+  o << "<text x='" << num(L + pw / 2) << "' y='" << num(H - 18) << "' text-anchor='middle'>" << esc(p.xlabel)
+    << "</text>\n";
   o << "<text transform='translate(18," << num(T + ph / 2) << ") rotate(-90)' text-anchor='middle'>" << esc(p.ylabel)
     << "</text>\n";
   // Data.
@@ -161,27 +178,29 @@ std::string render(const std::vector<HeatMap>& maps, const Legend& legend, int c
   o << "<text x='" << num(W / 2) << "' y='20' text-anchor='middle' font-size='15'>" << esc(title) << "</text>\n";
   double lx = left;
   for (size_t k = 0; k < legend.names.size(); ++k) {
-    o << "<rect x='" << num(lx) << "' y='30' width='12' height='12' fill='" << legend.colors[k] << "' stroke='#333' stroke-width='0.5'/>";
+    o << "<rect x='" << num(lx) << "' y='30' width='12' height='12' fill='" << legend.colors[k]
+      << "' stroke='#333' stroke-width='0.5'/>";
     o << "<text x='" << num(lx + 16) << "' y='40' font-size='12'>" << esc(legend.names[k]) << "</text>\n";
     lx += 30 + 7.0 * legend.names[k].size();
   }
   for (size_t mi = 0; mi < maps.size(); ++mi) {
     const HeatMap& m = maps[mi];
     const double ox = left + (mi % columns) * (mw + gap_x), oy = top + 20 + (mi / columns) * (mh + gap_y);
-    o << "<text x='" << num(ox + mw / 2) << "' y='" << num(oy - 6) << "' text-anchor='middle' font-size='12'>" << esc(m.title)
-      << "</text>\n";
+    o << "<text x='" << num(ox + mw / 2) << "' y='" << num(oy - 6) << "' text-anchor='middle' font-size='12'>"
+      << esc(m.title) << "</text>\n";
     const size_t mx = m.xlabels.size(), my = m.ylabels.size();
     for (size_t iy = 0; iy < my; ++iy)
       for (size_t ix = 0; ix < mx; ++ix) {
         const size_t c = iy * mx + ix;
         const int cat = c < m.cells.size() ? m.cells[c] : -1;
-        const std::string fill = cat >= 0 && cat < static_cast<int>(legend.colors.size()) ? legend.colors[cat] : "#f4f4f4";
+        const std::string fill =
+            cat >= 0 && cat < static_cast<int>(legend.colors.size()) ? legend.colors[cat] : "#f4f4f4";
         const double x = ox + ix * cw, y = oy + (my - 1 - iy) * ch;
         o << "<rect x='" << num(x) << "' y='" << num(y) << "' width='" << cw - 1 << "' height='" << ch - 1 << "' fill='"
           << fill << "'/>";
         if (c < m.cell_text.size() && !m.cell_text[c].empty())
-          o << "<text x='" << num(x + cw / 2) << "' y='" << num(y + ch / 2 + 3) << "' text-anchor='middle' font-size='8'>"
-            << esc(m.cell_text[c]) << "</text>";
+          o << "<text x='" << num(x + cw / 2) << "' y='" << num(y + ch / 2 + 3)
+            << "' text-anchor='middle' font-size='8'>" << esc(m.cell_text[c]) << "</text>";
         o << "\n";
       }
     for (size_t ix = 0; ix < mx; ++ix)

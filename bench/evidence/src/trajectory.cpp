@@ -13,8 +13,10 @@ Trajectory run_trajectory(Simulation& sim, const TriMesh& surface, const std::ve
   using clock = std::chrono::steady_clock;
   Trajectory out;
   const double v0 = std::abs(enclosed_volume(surface));
-  if (load.attach) sim.attach(tool_verts, load.value, load.attach_iterations);
-  else sim.pull(tool_verts, load.value);
+  if (load.attach)
+    sim.attach(tool_verts, load.value, load.attach_iterations);
+  else
+    sim.pull(tool_verts, load.value);
   std::vector<double> x;
   double step_seconds = 0.0;
   int64_t guard_actions = 0;
@@ -89,8 +91,10 @@ Trajectory run_trajectory(Simulation& sim, const TriMesh& surface, const std::ve
       break;
     }
   }
-  if (out.snaps.empty() || out.snaps.back().iterations != it) snapshot(it, converged);
-  else out.snaps.back().converged = converged;
+  if (out.snaps.empty() || out.snaps.back().iterations != it)
+    snapshot(it, converged);
+  else
+    out.snaps.back().converged = converged;
   if (restoration && finite) {
     sim.release();
     int64_t k = 0;

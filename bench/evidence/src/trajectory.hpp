@@ -15,7 +15,7 @@
 namespace softatlas::evidence {
 
 struct Reference {
-  std::vector<double> disp;            // FEM displacement at the surface's vertices (#V*3)
+  std::vector<double> disp;                 // FEM displacement at the surface's vertices (#V*3)
   std::array<double, 3> reaction{0, 0, 0};  // FEM force on the tool (attach loads)
   bool valid = false;
 };

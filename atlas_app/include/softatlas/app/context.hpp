@@ -17,12 +17,12 @@ namespace softatlas::app {
 class GlContext {
  public:
   virtual ~GlContext() = default;
-  virtual const char* backend() const = 0;      // "osmesa" | "glfw"
-  virtual int width() const = 0;                // framebuffer size in pixels
+  virtual const char* backend() const = 0;  // "osmesa" | "glfw"
+  virtual int width() const = 0;            // framebuffer size in pixels
   virtual int height() const = 0;
   virtual const Gl& gl() const = 0;
   virtual bool headless() const = 0;
-  virtual void swap() {}                        // present (window back end)
+  virtual void swap() {}  // present (window back end)
   virtual bool should_close() const { return false; }
   virtual void poll_events() {}
   virtual GLFWwindow* window() { return nullptr; }

@@ -129,16 +129,16 @@ class SeqLock {
 
 struct HapticStats {
   int64_t cycles = 0;
-  int64_t model_ticks = 0;        // ticks whose force was computed from a tissue model
-  int64_t model_updates = 0;      // local models received from the physics
-  double force_jump_max_N = 0;    // largest change of the device force between two ticks in contact
+  int64_t model_ticks = 0;      // ticks whose force was computed from a tissue model
+  int64_t model_updates = 0;    // local models received from the physics
+  double force_jump_max_N = 0;  // largest change of the device force between two ticks in contact
   double period_us_p50 = 0, period_us_p99 = 0, period_us_max = 0, period_us_mean = 0;
-  int64_t late_2ms = 0;     // periods longer than 2 ms
+  int64_t late_2ms = 0;  // periods longer than 2 ms
   double period_us_p999 = 0;
   double peak_force_N = 0;  // largest shaped force sent
   bool realtime = false;    // SCHED_FIFO granted
   bool memory_locked = false;
-  std::string message;      // why real time or locking was refused
+  std::string message;  // why real time or locking was refused
 };
 
 class HapticLoop {
@@ -146,8 +146,7 @@ class HapticLoop {
   // Reserves room for `max_cycles` period samples up front (no allocation while running).
   // The virtual coupling is sized from device.max_stiffness_N_m() and rate_hz; probe = true
   // makes the tool a probe tip that presses on surfaces instead of a grasp.
-  HapticLoop(Device& device, ForceShaper shaper, int64_t max_cycles, double rate_hz = 1000.0,
-             bool probe = false);
+  HapticLoop(Device& device, ForceShaper shaper, int64_t max_cycles, double rate_hz = 1000.0, bool probe = false);
   ~HapticLoop();
   // cpu >= 0: the loop's thread runs on that core only (see CpuPlan).
   void start(bool want_realtime, int cpu = -1);
@@ -200,8 +199,8 @@ bool lock_memory(std::string& why);
 // llvmpipe's threads, which inherit the affinity of the thread that creates the context) gets
 // the other cores. With a single allowed core nothing is pinned (haptic_cpu = -1).
 struct CpuPlan {
-  int haptic_cpu = -1;            // haptic loop and physics thread
-  std::vector<int> render_cpus;   // everything else
+  int haptic_cpu = -1;           // haptic loop and physics thread
+  std::vector<int> render_cpus;  // everything else
 };
 CpuPlan plan_cpus();
 // Restricts the calling thread to `cpus` (no-op when empty); false if the kernel refused.

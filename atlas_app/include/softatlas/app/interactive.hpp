@@ -12,10 +12,10 @@ struct WindowOptions {
   int width = 1280, height = 800;
   bool realtime = true;
   double max_force_N = 4.0;
-  int frames = 0;            // > 0: close after this many frames (scripts, Xvfb checks)
-  std::string screenshot;    // written after the last frame when frames > 0
-  std::string slice;         // --slice PLANE:MM as given ("" = none)
-  SlicePlane slice_plane;    // parsed from it
+  int frames = 0;          // > 0: close after this many frames (scripts, Xvfb checks)
+  std::string screenshot;  // written after the last frame when frames > 0
+  std::string slice;       // --slice PLANE:MM as given ("" = none)
+  SlicePlane slice_plane;  // parsed from it
 };
 
 // Runs until the window closes. `lesson` may be null (plain organ-set view).

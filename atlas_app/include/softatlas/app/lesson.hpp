@@ -22,9 +22,9 @@ inline bool is_task(StepKind k) {
 }
 
 struct CameraSpec {
-  std::string view;          // anterior | posterior | left | right | superior | inferior | ""
-  std::string target;        // organ to centre on ("" = whole scene)
-  double distance_mm = -1;   // < 0: fit
+  std::string view;                       // anterior | posterior | left | right | superior | inferior | ""
+  std::string target;                     // organ to centre on ("" = whole scene)
+  double distance_mm = -1;                // < 0: fit
   double yaw_deg = 1e9, pitch_deg = 1e9;  // 1e9: not given
 };
 
@@ -36,7 +36,7 @@ struct PullTask {
   std::string region;
   bool has_landmark = false;
   Eigen::Vector3d landmark_mm{0, 0, 0};
-  double radius_mm = 12.0;   // grasped patch around the region point
+  double radius_mm = 12.0;  // grasped patch around the region point
   double min_displacement_mm = 5.0;
   double max_force_N = 2.0;
   double time_limit_s = 3.0;
@@ -46,20 +46,20 @@ struct PullTask {
 struct QuestionTask {
   std::string ask;
   std::vector<std::string> choices;
-  int answer = 0;            // index into choices
+  int answer = 0;  // index into choices
 };
 
 // A cut plane through the scene (sectional anatomy): axial (z = at_mm), coronal (y), sagittal (x).
 struct SliceSpec {
-  std::string plane;         // axial | coronal | sagittal
+  std::string plane;  // axial | coronal | sagittal
   double at_mm = 0.0;
 };
 
 struct LessonStep {
   StepKind kind = StepKind::say;
-  std::string where;         // FILE:LINE:COLUMN of the step
+  std::string where;  // FILE:LINE:COLUMN of the step
   std::string title, hint;
-  std::string text;          // say
+  std::string text;                 // say
   std::vector<std::string> organs;  // highlight / hide / show / isolate / label; pick: [organ]
   CameraSpec camera;
   PullTask pull;
@@ -75,7 +75,7 @@ struct Lesson {
   std::vector<std::string> organs, context;
   PhysicsSettings physics;
   std::vector<LessonStep> steps;
-  io::OrganSet set;            // loaded and checked against the names above
+  io::OrganSet set;  // loaded and checked against the names above
   int task_count() const;
 };
 
@@ -96,12 +96,12 @@ struct ScriptAction {
   StepKind kind = StepKind::wait;
   std::string where;
   bool force_mode = false;
-  std::vector<Keyframe> keys;          // pull: offsets (m) or forces (N)
+  std::vector<Keyframe> keys;  // pull: offsets (m) or forces (N)
   bool has_click_mm = false;
-  Eigen::Vector3d click_mm{0, 0, 0};   // pick: the world point the user clicks on
+  Eigen::Vector3d click_mm{0, 0, 0};  // pick: the world point the user clicks on
   bool has_click_px = false;
   Eigen::Vector2d click_px{0, 0};
-  std::string choice;                  // answer: the chosen text
+  std::string choice;  // answer: the chosen text
 };
 
 struct DeviceScript {

@@ -12,10 +12,10 @@
 namespace softatlas::app {
 
 struct PickHit {
-  int organ = -1;          // index of the organ mesh (as added), -1: no hit
-  int triangle = -1;       // local face index in that organ
-  int nearest_vertex = -1; // local vertex of that face closest to the point
-  float t = 0.0f;          // ray parameter (distance along the unit direction)
+  int organ = -1;           // index of the organ mesh (as added), -1: no hit
+  int triangle = -1;        // local face index in that organ
+  int nearest_vertex = -1;  // local vertex of that face closest to the point
+  float t = 0.0f;           // ray parameter (distance along the unit direction)
   Eigen::Vector3f point{0, 0, 0};
 };
 
@@ -23,12 +23,11 @@ class PickBvh {
  public:
   // Adds an organ mesh (local faces #F*3); call build() after the last one.
   int add_mesh(const std::vector<int32_t>& faces, size_t nvert);
-  void build(const std::vector<const float*>& positions);   // #V*3 per organ
-  void refit(const std::vector<const float*>& positions);   // same topology, new positions
+  void build(const std::vector<const float*>& positions);  // #V*3 per organ
+  void refit(const std::vector<const float*>& positions);  // same topology, new positions
   // Closest hit along the ray; organs with visible[o] == false are skipped (empty: all), and so
   // are points p cut away by a slice plane (clip.xyz . p + clip.w > 0; the default cuts nothing).
-  PickHit intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& dir,
-                    const std::vector<bool>& visible = {},
+  PickHit intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& dir, const std::vector<bool>& visible = {},
                     const Eigen::Vector4f& clip = Eigen::Vector4f(0, 0, 0, -1)) const;
   size_t triangle_count() const { return tri_organ_.size(); }
 

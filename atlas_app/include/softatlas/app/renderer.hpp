@@ -21,14 +21,14 @@ namespace softatlas::app {
 
 struct OrganStyle {
   std::array<float, 3> color{0.8f, 0.5f, 0.45f};
-  float alpha = 1.0f;        // < 1: context organ (transparent)
+  float alpha = 1.0f;  // < 1: context organ (transparent)
   bool visible = true;
   bool highlight = false;
 };
 
 struct Cues {
-  bool grid = true;          // grid on the posterior body wall (where organs are anchored)
-  bool axes = true;          // R/A/S axis triad at the scene's corner
+  bool grid = true;  // grid on the posterior body wall (where organs are anchored)
+  bool axes = true;  // R/A/S axis triad at the scene's corner
   std::array<float, 3> background{0.10f, 0.11f, 0.13f};
 };
 
@@ -41,7 +41,7 @@ struct Line {
 // Sectional view: the organs are cut at axis = at_mm (0 sagittal x, 1 coronal y, 2 axial z, RAS
 // mm); the part above the plane (keep_below) or below it is removed, the cut shows the inside.
 struct SlicePlane {
-  int axis = -1;             // -1: no slice
+  int axis = -1;  // -1: no slice
   float at_mm = 0.0f;
   bool keep_below = true;
   bool active() const { return axis >= 0 && axis < 3; }
@@ -49,7 +49,8 @@ struct SlicePlane {
 };
 
 // An arrow from a to b (shaft and a four-line head) appended to lines.
-void add_arrow(std::vector<Line>& lines, const Eigen::Vector3f& a, const Eigen::Vector3f& b, const std::array<float, 4>& color);
+void add_arrow(std::vector<Line>& lines, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
+               const std::array<float, 4>& color);
 
 class Renderer {
  public:

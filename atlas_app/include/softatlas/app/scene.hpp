@@ -16,9 +16,9 @@ namespace softatlas::app {
 // Physics settings a lesson (or the viewer panel) may override. Negative / empty: keep the
 // organ set's per-organ material.
 struct PhysicsSettings {
-  std::string model;                 // tmsm | cmsm | nmsm | flexion, "" = per organ
+  std::string model;  // tmsm | cmsm | nmsm | flexion, "" = per organ
   sim::Integrator integrator = sim::Integrator::semi_implicit;
-  double dt_s = 0.0;                 // 0: the models' own step (sim::recommended_dt_s)
+  double dt_s = 0.0;  // 0: the models' own step (sim::recommended_dt_s)
   bool gravity = false;
   double young_modulus_pa = -1.0;
   double elastica_b = -1.0;
@@ -33,8 +33,7 @@ struct PhysicsSettings {
 // the app needs a third state (left out entirely) and the lesson's overrides, so it keeps this
 // converter and shares the material mapping (io::to_sim_material).
 sim::SceneDesc scene_from_organ_set(const io::OrganSet& set, const std::vector<std::string>& shown,
-                                    const std::vector<std::string>& context,
-                                    const PhysicsSettings& physics);
+                                    const std::vector<std::string>& context, const PhysicsSettings& physics);
 
 // Display name (English, the FMA preferred name where the organ set gives TotalSegmentator's
 // name) and body system of an organ; unknown names: "some_organ" -> "Some organ", system "other".
@@ -72,8 +71,7 @@ class AtlasScene {
   // superior, inferior, left, right) or closest to `landmark_mm`, and every vertex within
   // radius_mm of it (rest shape).
   std::vector<int32_t> region_vertices(int view_index, const std::string& region, double radius_mm) const;
-  std::vector<int32_t> landmark_vertices(int view_index, const Eigen::Vector3d& landmark_mm,
-                                         double radius_mm) const;
+  std::vector<int32_t> landmark_vertices(int view_index, const Eigen::Vector3d& landmark_mm, double radius_mm) const;
   // Mean displacement (mm) of global vertices from their rest positions.
   double mean_displacement_mm(const std::vector<int32_t>& global) const;
 
@@ -83,7 +81,7 @@ class AtlasScene {
 
  private:
   io::OrganSet set_;
-  std::vector<int> view_organs_;     // set organ index per view index
+  std::vector<int> view_organs_;  // set organ index per view index
   std::vector<bool> context_;
   std::vector<int> model_organ_;
   std::vector<std::vector<int32_t>> local_to_global_;

@@ -16,7 +16,7 @@ struct ToolCommand {
   Vec3d offset_m{0, 0, 0};
   Vec3d force_N{0, 0, 0};
   bool force_mode = false;
-  bool engaged = false;   // button down / grasping
+  bool engaged = false;  // button down / grasping
   // Filled by the haptic loop's coupling (virtual_coupling.hpp): where the physics should hold
   // the tissue (the proxy, tool frame), whether the tool touches it, and for a probe which
   // contact this is and where it began.

@@ -25,9 +25,9 @@ constexpr size_t kOverlayChars = 3000;
 std::string overlay_text(const std::string& text);
 
 struct Caption {
-  std::string title;    // lesson / step name
-  std::string text;     // what the lesson says
-  std::string status;   // pass / fail line
+  std::string title;   // lesson / step name
+  std::string text;    // what the lesson says
+  std::string status;  // pass / fail line
   bool ok = true;
 };
 
@@ -40,7 +40,7 @@ class Viewer {
 
   // Per view organ positions (mm, #V*3); refits the picking BVH and uploads to the renderer.
   void set_geometry(const std::vector<std::vector<float>>& positions_mm);
-  void set_geometry_from_scene();  // same, read from scene.state (single-threaded callers)
+  void set_geometry_from_scene();          // same, read from scene.state (single-threaded callers)
   PickHit pick(float px, float py) const;  // pixel, top-left origin
   void frame_all();                        // camera fits the view organs
 
@@ -52,20 +52,23 @@ class Viewer {
     panel();
     end();
   }
-  void render() { begin(); end(); }
+  void render() {
+    begin();
+    end();
+  }
   std::vector<uint8_t> screenshot() const { return context_.read_rgba(); }
   void save_png(const std::string& path) const;
 
   Camera camera;
   Cues cues;
-  std::vector<OrganStyle> styles;  // per view organ
-  std::vector<bool> labeled;       // per view organ: draw the name at its centroid
-  std::vector<Line> lines;         // overlay (tool, force arrow)
+  std::vector<OrganStyle> styles;                              // per view organ
+  std::vector<bool> labeled;                                   // per view organ: draw the name at its centroid
+  std::vector<Line> lines;                                     // overlay (tool, force arrow)
   std::vector<std::pair<Eigen::Vector3f, std::string>> texts;  // world-anchored notes
   Caption caption;
-  SlicePlane slice;                // sectional view (lesson `slice` steps, --slice)
-  int hovered = -1;                // view organ under the mouse (window)
-  bool hover_names = true;         // false during pick steps: the name would give the answer
+  SlicePlane slice;         // sectional view (lesson `slice` steps, --slice)
+  int hovered = -1;         // view organ under the mouse (window)
+  bool hover_names = true;  // false during pick steps: the name would give the answer
   GlContext& context() { return context_; }
   Renderer& renderer() { return *renderer_; }
   ImGuiContext* imgui() { return imgui_; }
@@ -88,7 +91,7 @@ class Viewer {
   bool glfw_backend_ = false;
   void update_slice_image();  // the CT resampled on `slice` (when it moved)
   std::shared_ptr<const io::CtImage> ct_;
-  SlicePlane ct_slice_;        // the plane the current slice image was made for
+  SlicePlane ct_slice_;  // the plane the current slice image was made for
 };
 
 }  // namespace softatlas::app

@@ -45,11 +45,11 @@ namespace softatlas::app {
 // What the physics publishes after each step. Positions are in the tool frame: offsets (m) from
 // the tool's home (the grasp point of a grasp; the probe's home point of a probe).
 struct LocalModel {
-  uint64_t serial = 0;            // increases with every published model
-  bool valid = false;             // a grasp or a contact the physics has set up
-  bool has_stiffness = false;     // K from the tissue (false: a held reaction, ToolFeedback)
-  Vec3d p0_m{0, 0, 0};            // proxy position the physics used this step
-  Vec3d reaction0_N{0, 0, 0};     // R0: force of the tissue on the tool at p0
+  uint64_t serial = 0;                            // increases with every published model
+  bool valid = false;                             // a grasp or a contact the physics has set up
+  bool has_stiffness = false;                     // K from the tissue (false: a held reaction, ToolFeedback)
+  Vec3d p0_m{0, 0, 0};                            // proxy position the physics used this step
+  Vec3d reaction0_N{0, 0, 0};                     // R0: force of the tissue on the tool at p0
   double K_N_m[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};  // row-major, symmetric positive semi-definite
   double physics_time_s = 0.0;
   // Probe only: the surface nearest to the tip (the plane through surface_m with outward unit
@@ -62,17 +62,16 @@ struct LocalModel {
 };
 
 struct CouplingParams {
-  double stiffness_N_m = 400.0;   // k_c
-  double damping_N_s_m = 0.1;     // b_c
-  double period_s = 1e-3;         // T, the haptic tick
+  double stiffness_N_m = 400.0;  // k_c
+  double damping_N_s_m = 0.1;    // b_c
+  double period_s = 1e-3;        // T, the haptic tick
 };
 
 // The coupling for a device of rated stiffness `device_max_stiffness_N_m` (at its servo period
 // `device_period_s`) ticked at `rate_hz`: k_c = margin 2 (b - b_c) / T with b = K_dev T_dev / 2
 // and b_c = damping_fraction b (see above). margin 0.5 keeps half of Colgate's bound in reserve.
-CouplingParams size_coupling(double device_max_stiffness_N_m, double rate_hz,
-                             double device_period_s = 1e-3, double margin = 0.5,
-                             double damping_fraction = 0.2);
+CouplingParams size_coupling(double device_max_stiffness_N_m, double rate_hz, double device_period_s = 1e-3,
+                             double margin = 0.5, double damping_fraction = 0.2);
 // Colgate's criterion with the device damping implied by the rating: b > k_c T / 2 + b_c.
 bool passive(const CouplingParams& c, double device_max_stiffness_N_m, double device_period_s = 1e-3);
 
@@ -147,14 +146,14 @@ class CouplingPhysics {
   // inertia, elasticity and Rayleigh damping of the lattice), projected onto the PSD cone; B of
   // the springs on its own.
   static void step_response(const sim::Model& model, const sim::State& state, const sim::Work& work,
-                            const std::vector<int32_t>& verts, std::vector<uint8_t>& held_scratch,
-                            double K_step[9], double B[9]);
+                            const std::vector<int32_t>& verts, std::vector<uint8_t>& held_scratch, double K_step[9],
+                            double B[9]);
   const std::vector<int32_t>& held() const { return held_; }
 
  private:
   enum class Mode { none, grasp, probe };
-  void nearest_surface(const sim::Model& model, const sim::State& state, const Vec3d& tip_world,
-                       Vec3d& point, Vec3d& normal, int32_t& vertex) const;
+  void nearest_surface(const sim::Model& model, const sim::State& state, const Vec3d& tip_world, Vec3d& point,
+                       Vec3d& normal, int32_t& vertex) const;
   void patch(const sim::Model& model, const sim::State& state, int32_t vertex, std::vector<int32_t>& out) const;
   // The surface point nearest to `tool_point` (tool frame) and its patch into patch_scratch_.
   bool patch_near(const sim::Model& model, const sim::State& state, const Vec3d& tool_point, Vec3d& point,

@@ -23,26 +23,25 @@ struct RestoreOptions {
   double restored_below_m = 1e-3;  // restoration_time_s: first time the residual is below this
   double perturb_m = 1e-6;         // rest perturbation: each free vertex moves this far
   unsigned seed = 1;
-  bool progress = false;           // a progress line on stderr every simulated second
+  bool progress = false;  // a progress line on stderr every simulated second
 };
 
 struct RestoreResult {
   std::string organ, model, integrator;
   double dt_s = 0.0;
   int grasped_vertices = 0;
-  double rest_drift_mm = 0.0;       // largest displacement during the unloaded phase
-  double pull_reached_mm = 0.0;     // displacement of the grasped region's centroid at the hold's end
-  double residual_mm = 0.0;         // residual_at_s after the release, rigid motion removed
-  double restoration_time_s = -1.0; // < 0: the residual never fell below restored_below_m
-  double volume_change_pct = 0.0;   // the signed change of largest magnitude during the run
+  double rest_drift_mm = 0.0;        // largest displacement during the unloaded phase
+  double pull_reached_mm = 0.0;      // displacement of the grasped region's centroid at the hold's end
+  double residual_mm = 0.0;          // residual_at_s after the release, rigid motion removed
+  double restoration_time_s = -1.0;  // < 0: the residual never fell below restored_below_m
+  double volume_change_pct = 0.0;    // the signed change of largest magnitude during the run
   bool finite = true;
   double simulated_s = 0.0, wall_s = 0.0;
 };
 
 // Runs the protocol on organ `organ` of a compiled scene description (InputError if the organ is
 // absent or has no free vertex to grasp).
-RestoreResult run_restore(const sim::SceneDesc& scene, const std::string& organ,
-                          const RestoreOptions& options);
+RestoreResult run_restore(const sim::SceneDesc& scene, const std::string& organ, const RestoreOptions& options);
 
 // Largest distance (m) of any vertex of `organ` from its rest position once the best-fit rigid
 // motion (Kabsch) of the organ is removed.

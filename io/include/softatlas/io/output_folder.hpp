@@ -56,7 +56,6 @@ class StagedFolder {
   [[noreturn]] void fail(const std::exception& e) const;
 
  public:
-
  private:
   std::filesystem::path target_, stage_, created_;  // created_: first parent made by us, or empty
   bool existed_ = false, committed_ = false;

@@ -10,10 +10,10 @@
 namespace softatlas::io {
 
 struct SceneOptions {
-  std::vector<std::string> shown;   // organ names to show; empty = all organs
-  std::string model_override;       // "" = each organ's material.model; else tmsm|cmsm|nmsm|flexion
+  std::vector<std::string> shown;  // organ names to show; empty = all organs
+  std::string model_override;      // "" = each organ's material.model; else tmsm|cmsm|nmsm|flexion
   sim::Integrator integrator = sim::Integrator::semi_implicit;
-  double dt_s = 0.0;                // 0: the models' own step (sim::recommended_dt_s)
+  double dt_s = 0.0;  // 0: the models' own step (sim::recommended_dt_s)
   bool gravity = false;
   bool guard = true;
   int cg_iterations = 25;

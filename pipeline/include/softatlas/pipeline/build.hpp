@@ -29,15 +29,15 @@ struct BuildOptions {
   std::vector<LabelSource> labels;
   std::string seeds_path;
   std::vector<MeshSource> meshes;
-  std::vector<std::string> organs;         // empty: every soft organ present
-  std::map<std::string, int> budgets;      // overrides of the Table IV defaults
+  std::vector<std::string> organs;     // empty: every soft organ present
+  std::map<std::string, int> budgets;  // overrides of the Table IV defaults
   std::string output;
   bool overwrite = false;
   SurfaceOptions surface;
-  RemeshOptions remesh;                    // face_budget is set per organ
+  RemeshOptions remesh;  // face_budget is set per organ
   ConnectOptions connect;
   SegmentOptions segment;
-  bool quiet = false;                      // no progress on stderr
+  bool quiet = false;  // no progress on stderr
 };
 
 struct StageTimes {

@@ -10,9 +10,9 @@
 namespace softatlas::pipeline {
 
 struct ConnectOptions {
-  double distance_mm = 4.0;   // surface points closer than this are connected
-  double spacing_mm = 6.0;    // thinning: at most one spring per disc of this radius on organ A
-  double stiffness = 50.0;    // N/m per spring
+  double distance_mm = 4.0;  // surface points closer than this are connected
+  double spacing_mm = 6.0;   // thinning: at most one spring per disc of this radius on organ A
+  double stiffness = 50.0;   // N/m per spring
   // Anchors (organ sets from a CT, in RAS): the posterior surface of a supine patient's organ
   // rests on the body wall, so the `anchor_count` posterior-most vertices (RAS -y), at least
   // anchor_spacing_mm apart, are written as fixed vertices. 0 turns anchors off.
@@ -20,10 +20,9 @@ struct ConnectOptions {
   double anchor_spacing_mm = 15.0;
   // Default anatomical pairs (always tried, and any other pair closer than distance_mm).
   std::vector<std::pair<std::string, std::string>> pairs = {
-      {"liver", "gallbladder"}, {"liver", "diaphragm"},  {"stomach", "spleen"},
-      {"stomach", "diaphragm"}, {"liver", "stomach"},    {"liver", "inferior_vena_cava"},
-      {"kidney_left", "spleen"}, {"pancreas", "stomach"}, {"heart", "aorta"},
-      {"heart", "pulmonary_artery"}};
+      {"liver", "gallbladder"}, {"liver", "diaphragm"},          {"stomach", "spleen"},     {"stomach", "diaphragm"},
+      {"liver", "stomach"},     {"liver", "inferior_vena_cava"}, {"kidney_left", "spleen"}, {"pancreas", "stomach"},
+      {"heart", "aorta"},       {"heart", "pulmonary_artery"}};
 };
 
 struct PairReport {
@@ -33,8 +32,7 @@ struct PairReport {
   bool default_pair = false;
 };
 
-std::vector<io::Connection> connect_organs(const std::vector<io::OrganEntry>& organs,
-                                           const ConnectOptions& options,
+std::vector<io::Connection> connect_organs(const std::vector<io::OrganEntry>& organs, const ConnectOptions& options,
                                            std::vector<PairReport>* report);
 
 }  // namespace softatlas::pipeline

@@ -40,17 +40,15 @@ struct RemeshResult {
   double mean_distance_mm = 0.0;     // mean of the two one-sided vertex distances
   double target_edge_mm = 0.0;
   std::string simplification = "isotropic";  // or "isotropic_two_level", "garland_heckbert+isotropic"
-  double isotropic_hausdorff_mm = 0.0;        // what the isotropic route reached
-  double volume_offset_mm = 0.0;              // normal offset that restored the volume
+  double isotropic_hausdorff_mm = 0.0;       // what the isotropic route reached
+  double volume_offset_mm = 0.0;             // normal offset that restored the volume
 };
 
 // Throws InputError naming `where` if the budget is below what a closed surface of the input's
 // components can have, or if the input cannot be made into a closed surface.
-RemeshResult repair_and_remesh(const io::TriMesh& input, const RemeshOptions& options,
-                               const std::string& where);
+RemeshResult repair_and_remesh(const io::TriMesh& input, const RemeshOptions& options, const std::string& where);
 
 // One-sided distances from the vertices of `from` to the surface `to` (AABB tree): max and mean.
-void surface_distance(const io::TriMesh& from, const io::TriMesh& to, double* max_mm,
-                      double* mean_mm);
+void surface_distance(const io::TriMesh& from, const io::TriMesh& to, double* max_mm, double* mean_mm);
 
 }  // namespace softatlas::pipeline

@@ -10,9 +10,9 @@ namespace softatlas::pipeline {
 struct SurfaceReport {
   size_t faces = 0;
   size_t vertices = 0;
-  size_t boundary_edges = 0;       // edges with one face
-  size_t nonmanifold_edges = 0;    // edges with three or more faces
-  size_t misoriented_edges = 0;    // two faces traversing the edge in the same direction
+  size_t boundary_edges = 0;     // edges with one face
+  size_t nonmanifold_edges = 0;  // edges with three or more faces
+  size_t misoriented_edges = 0;  // two faces traversing the edge in the same direction
   size_t components = 0;
   int genus = 0;                   // sum over components of (2 - chi) / 2 when closed
   double signed_volume_mm3 = 0.0;  // > 0 for outward normals

@@ -24,8 +24,8 @@ struct Volume {
 
   size_t voxel_count() const { return values.size(); }
   size_t index(int i, int j, int k) const {
-    return static_cast<size_t>(i) + static_cast<size_t>(dims[0]) *
-                                        (static_cast<size_t>(j) + static_cast<size_t>(dims[1]) * k);
+    return static_cast<size_t>(i) +
+           static_cast<size_t>(dims[0]) * (static_cast<size_t>(j) + static_cast<size_t>(dims[1]) * k);
   }
   std::array<double, 3> world(double i, double j, double k) const;
   // Inverse map (continuous voxel indices of a world point).

@@ -37,32 +37,32 @@ struct Work;
 
 struct ContactModel {
   bool on = false;
-  double depth_m = 3e-3;             // deepest penetration projected out; deeper ones are let go
-  double cell_m = 0.0;               // hash grid cell size
-  int32_t table_size = 0;            // hash grid buckets (power of two)
-  std::vector<int8_t> organ_sign;    // +1 when the organ's faces are outward, -1 inward
-  std::vector<uint8_t> vert_movable; // 0: fixed vertex or rigid organ
-  std::vector<uint8_t> rest_inside;  // per vertex: inside another organ at rest (never projected)
-  std::vector<uint8_t> joined;       // #organs^2: overlapping deeper than 2 mm at rest, no contact
+  double depth_m = 3e-3;              // deepest penetration projected out; deeper ones are let go
+  double cell_m = 0.0;                // hash grid cell size
+  int32_t table_size = 0;             // hash grid buckets (power of two)
+  std::vector<int8_t> organ_sign;     // +1 when the organ's faces are outward, -1 inward
+  std::vector<uint8_t> vert_movable;  // 0: fixed vertex or rigid organ
+  std::vector<uint8_t> rest_inside;   // per vertex: inside another organ at rest (never projected)
+  std::vector<uint8_t> joined;        // #organs^2: overlapping deeper than 2 mm at rest, no contact
 };
 
 // Per step scratch (sized by make_work; empty when contact is off).
 struct ContactWork {
-  std::vector<double> box;           // #organs * 6 (min x y z, max x y z) this step
-  std::vector<uint8_t> organ_paired; // #organs: in some pair this step
-  std::vector<uint8_t> pair;         // #organs^2: a and b are paired
-  std::vector<int32_t> bucket_start; // table_size + 1
-  std::vector<int32_t> bucket_face;  // #faces in the grid, by bucket
-  std::vector<int32_t> face_bucket;  // #faces: its bucket, -1 when not in the grid
-  std::vector<double> face_sphere;   // #faces * 4: centroid and radius this step
-  std::vector<int32_t> big_face;     // faces larger than a cell (not in the grid), nbig of them
+  std::vector<double> box;            // #organs * 6 (min x y z, max x y z) this step
+  std::vector<uint8_t> organ_paired;  // #organs: in some pair this step
+  std::vector<uint8_t> pair;          // #organs^2: a and b are paired
+  std::vector<int32_t> bucket_start;  // table_size + 1
+  std::vector<int32_t> bucket_face;   // #faces in the grid, by bucket
+  std::vector<int32_t> face_bucket;   // #faces: its bucket, -1 when not in the grid
+  std::vector<double> face_sphere;    // #faces * 4: centroid and radius this step
+  std::vector<int32_t> big_face;      // faces larger than a cell (not in the grid), nbig of them
   int32_t nbig = 0;
-  std::vector<int32_t> c_vert, c_face;  // contacts of this step: vertex, face
-  std::vector<double> c_bary, c_normal; // #contacts * 3
-  std::vector<double> saved;         // #verts * 3 positions before the projection
-  std::vector<uint8_t> weight;       // #verts: movable this step (tool-held vertices are not)
-  std::vector<uint8_t> touched;      // #verts: moved by the projection
-  std::vector<double> held_before;   // #verts * 3: held vertices' positions before the projection
+  std::vector<int32_t> c_vert, c_face;   // contacts of this step: vertex, face
+  std::vector<double> c_bary, c_normal;  // #contacts * 3
+  std::vector<double> saved;             // #verts * 3 positions before the projection
+  std::vector<uint8_t> weight;           // #verts: movable this step (tool-held vertices are not)
+  std::vector<uint8_t> touched;          // #verts: moved by the projection
+  std::vector<double> held_before;       // #verts * 3: held vertices' positions before the projection
   // Conservative advancement (contact_pass): a vertex is looked up only when what it and its
   // partners moved since its last lookup may have closed the distance found then.
   std::vector<double> clear;         // #verts: distance to partner faces left, as of this step

@@ -55,19 +55,19 @@ struct Material {
   double poisson_ratio = 0.45;
   double density_kg_m3 = 1060.0;
   Elasticity elasticity = Elasticity::corotational;
-  double rayleigh_mass = 0.0;       // C = alpha M + beta K (dynamics only)
+  double rayleigh_mass = 0.0;  // C = alpha M + beta K (dynamics only)
   double rayleigh_stiffness = 0.0;
 };
 
 // Everything fixed after compile: rest positions, per-tet shape gradients and stiffness blocks.
 struct Model {
   int32_t nnode = 0, ntet = 0;
-  std::vector<double> rest;          // #N*3
-  std::vector<int32_t> tets;         // #T*4, reordered so that every rest volume is positive
-  std::vector<double> tet_volume;    // #T
-  std::vector<double> tet_dm_inv;    // #T*9 row-major inverse of Dm = [X1-X0 X2-X0 X3-X0]
-  std::vector<double> tet_stiffness; // #T*144, 12x12 row-major element stiffness (rest frame)
-  std::vector<double> node_mass;     // #N lumped: density * V / 4 per tet
+  std::vector<double> rest;           // #N*3
+  std::vector<int32_t> tets;          // #T*4, reordered so that every rest volume is positive
+  std::vector<double> tet_volume;     // #T
+  std::vector<double> tet_dm_inv;     // #T*9 row-major inverse of Dm = [X1-X0 X2-X0 X3-X0]
+  std::vector<double> tet_stiffness;  // #T*144, 12x12 row-major element stiffness (rest frame)
+  std::vector<double> node_mass;      // #N lumped: density * V / 4 per tet
   Material material;
   double lame_lambda = 0.0, lame_mu = 0.0;
 };
@@ -81,9 +81,9 @@ Model compile(const TetMesh& mesh, const Material& material);
 
 // The load: nodal forces and prescribed displacements (Dirichlet, per degree of freedom).
 struct Load {
-  std::vector<double> force;         // #N*3, N
-  std::vector<uint8_t> dof_fixed;    // #N*3, 1 = prescribed
-  std::vector<double> dof_disp;      // #N*3, prescribed displacement from rest (m)
+  std::vector<double> force;       // #N*3, N
+  std::vector<uint8_t> dof_fixed;  // #N*3, 1 = prescribed
+  std::vector<double> dof_disp;    // #N*3, prescribed displacement from rest (m)
 };
 Load make_load(const Model& model);  // no force, nothing fixed
 // Fixes all three DOFs of `nodes` at displacement `disp_m`.
@@ -95,16 +95,16 @@ void add_force(Load& load, const std::vector<int32_t>& nodes, const std::array<d
 void internal_forces(const Model& model, const std::vector<double>& x, std::vector<double>& f);
 
 struct StaticOptions {
-  int load_steps = 1;           // corotational: apply the load in this many equal increments
-  int max_iterations = 60;      // Newton iterations per increment
-  double tolerance = 1e-9;      // |residual| / (|load| + tiny) and |dx| / size
+  int load_steps = 1;       // corotational: apply the load in this many equal increments
+  int max_iterations = 60;  // Newton iterations per increment
+  double tolerance = 1e-9;  // |residual| / (|load| + tiny) and |dx| / size
   // Called after each increment with its load fraction (s / load_steps) and the positions: the
   // quasi-static load path, for comparisons along it rather than at its end only.
   std::function<void(double fraction, const std::vector<double>& x)> on_increment;
 };
 struct StaticReport {
   int iterations = 0;
-  double residual = 0.0;        // relative residual at the end
+  double residual = 0.0;  // relative residual at the end
   bool converged = false;
 };
 // Static equilibrium f_int(x) + f_ext = 0 with the prescribed displacements. x holds the start
@@ -115,7 +115,7 @@ StaticReport solve_static(const Model& model, const Load& load, std::vector<doub
                           const StaticOptions& options = {});
 
 struct State {
-  std::vector<double> x, v;     // #N*3
+  std::vector<double> x, v;  // #N*3
   double time_s = 0.0;
 };
 State make_state(const Model& model);
@@ -138,13 +138,12 @@ double energy(const Model& model, const std::vector<double>& x, const std::vecto
 // tetrahedron whose smallest barycentric weight is largest (nearest, weights clamped and
 // renormalised). pts: #P*3.
 struct Embedding {
-  std::vector<int32_t> tet;        // #P
-  std::vector<double> weight;      // #P*4
-  std::vector<double> distance;    // #P, 0 inside, else distance to the clamped point (m)
+  std::vector<int32_t> tet;      // #P
+  std::vector<double> weight;    // #P*4
+  std::vector<double> distance;  // #P, 0 inside, else distance to the clamped point (m)
 };
 Embedding embed_points(const Model& model, const std::vector<double>& pts);
 // Displacements (from rest) of the embedded points for FEM positions x: out #P*3.
-void interpolate(const Model& model, const Embedding& emb, const std::vector<double>& x,
-                 std::vector<double>& out);
+void interpolate(const Model& model, const Embedding& emb, const std::vector<double>& x, std::vector<double>& out);
 
 }  // namespace softatlas::sim::fem

@@ -29,9 +29,9 @@
 namespace softatlas::sim::fem {
 
 struct QuadraticModel {
-  Model linear;                      // the corner mesh (tets reordered to positive volume)
-  int32_t nvertex = 0;               // corner nodes
-  int32_t nnode = 0;                 // corners + edge nodes
+  Model linear;         // the corner mesh (tets reordered to positive volume)
+  int32_t nvertex = 0;  // corner nodes
+  int32_t nnode = 0;    // corners + edge nodes
   int32_t ntet = 0;
   std::vector<double> rest;          // #nnode*3
   std::vector<int32_t> tets;         // #T*10: corners 0..3 (as linear.tets), edges 01 02 03 12 13 23
@@ -88,7 +88,6 @@ std::array<double, 3> reaction_force(const QuadraticModel& q, const std::vector<
 
 // Displacements of points embedded in the corner mesh (embed_points(q.linear, pts)), with the
 // quadratic shape functions: N_a = L_a (2 L_a - 1) at corners, N_ab = 4 L_a L_b at edges.
-void interpolate(const QuadraticModel& q, const Embedding& emb, const std::vector<double>& x,
-                 std::vector<double>& out);
+void interpolate(const QuadraticModel& q, const Embedding& emb, const std::vector<double>& x, std::vector<double>& out);
 
 }  // namespace softatlas::sim::fem

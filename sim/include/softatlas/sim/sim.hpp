@@ -43,20 +43,20 @@ Work make_work(const Model& model);
 
 enum class StepStatus : int32_t {
   ok = 0,
-  substepped = 1,    // the guard split the step into model.substeps explicit sub-steps
+  substepped = 1,         // the guard split the step into model.substeps explicit sub-steps
   implicit_fallback = 2,  // the guard solved this step with implicit Euler
-  restored = 3,      // non-finite or runaway values: the last good state was restored
+  restored = 3,           // non-finite or runaway values: the last good state was restored
 };
 const char* to_string(StepStatus status);
 
 struct StepReport {
   StepStatus status = StepStatus::ok;
-  double accel_sum = 0.0;        // sum_i |a_i| over free vertices (paper 000 stopping rule)
+  double accel_sum = 0.0;  // sum_i |a_i| over free vertices (paper 000 stopping rule)
   double max_speed_m_s = 0.0;
   bool tool_clamped = false;
-  int cg_iterations = 0;         // implicit steps: CG iterations done (most over the components)
-  int contacts = 0;              // vertices projected out of another organ (contact.cpp)
-  const char* message = "";      // static text, set when status != ok
+  int cg_iterations = 0;     // implicit steps: CG iterations done (most over the components)
+  int contacts = 0;          // vertices projected out of another organ (contact.cpp)
+  const char* message = "";  // static text, set when status != ok
 };
 
 // Advances the state by model.dt_s. Never allocates, never throws; on non-finite values it
@@ -64,8 +64,8 @@ struct StepReport {
 StepReport step(const Model& model, State& state, Work& work);
 
 // The paper's stopping rule: step until sum |a| < accel_tol or max_steps. Returns steps taken.
-int64_t run_to_rest(const Model& model, State& state, Work& work, int64_t max_steps,
-                    double accel_tol, StepReport* last = nullptr);
+int64_t run_to_rest(const Model& model, State& state, Work& work, int64_t max_steps, double accel_tol,
+                    StepReport* last = nullptr);
 
 // ---- interaction ------------------------------------------------------------------------------
 // Force pulling: a total force (N) split evenly over the picked vertices.
@@ -73,8 +73,8 @@ void pull_force(const Model& model, State& state, const std::vector<int32_t>& ve
                 const std::array<double, 3>& force_N);
 // Position attachment (paper 000 section III.C): the picked vertices move from where they are
 // to where they are + offset over `iterations` steps, then stay there.
-void attach(const Model& model, State& state, const std::vector<int32_t>& verts,
-            const std::array<double, 3>& offset_m, int iterations);
+void attach(const Model& model, State& state, const std::vector<int32_t>& verts, const std::array<double, 3>& offset_m,
+            int iterations);
 // Moves an existing attachment's target (haptic device motion): new offset from the anchor.
 void move_attachment(State& state, const std::array<double, 3>& offset_m);
 void release(State& state);
@@ -101,16 +101,15 @@ double max_displacement(const Model& model, const State& state);
 // Kinetic + spring potential energy (J), for drift measurements.
 double total_energy(const Model& model, const State& state);
 // Sum of internal forces and of their torques about the origin (should both vanish).
-void internal_force_and_torque(const Model& model, const State& state, Work& work,
-                               std::array<double, 3>& force, std::array<double, 3>& torque);
+void internal_force_and_torque(const Model& model, const State& state, Work& work, std::array<double, 3>& force,
+                               std::array<double, 3>& torque);
 // Internal forces only (springs, damping, flexion, connections; no gravity, no tool) into
 // work.fx/fy/fz; used by tests and by the reaction force.
 void compute_internal_forces(const Model& model, const State& state, Work& work);
 
 // Positions of one organ as row-major #V*3 in the source mesh's vertex order, so the source
 // faces index them directly (rendering, export). Vertices used by no face are (0, 0, 0).
-void organ_positions(const Model& model, const State& state, int32_t organ,
-                     std::vector<double>& out);
+void organ_positions(const Model& model, const State& state, int32_t organ, std::vector<double>& out);
 // Global (compiled) index of vertex `source_vertex` of the organ's source mesh; -1 if unused.
 // The compiler reorders vertices for memory locality: always map through this.
 int32_t global_vertex(const Model& model, int32_t organ, int32_t source_vertex);

@@ -37,18 +37,17 @@ namespace softatlas::sim {
 
 // The lattice of one closed surface (vertices #V*3, faces #F*3, outward or inward oriented).
 struct SolidLattice {
-  fem::TetMesh mesh;                // nodes and positive tetrahedra
-  std::vector<double> tet_fraction; // #tets: inside fraction of the tetrahedron's cell (0, 1]
-                                    // (tetrahedra 6c .. 6c + 5 are cell c's)
-  std::vector<int32_t> embed_tet;   // #V: tetrahedron holding each surface vertex (-1: unused)
-  std::vector<double> embed_w;      // #V*4 barycentric weights
+  fem::TetMesh mesh;                 // nodes and positive tetrahedra
+  std::vector<double> tet_fraction;  // #tets: inside fraction of the tetrahedron's cell (0, 1]
+                                     // (tetrahedra 6c .. 6c + 5 are cell c's)
+  std::vector<int32_t> embed_tet;    // #V: tetrahedron holding each surface vertex (-1: unused)
+  std::vector<double> embed_w;       // #V*4 barycentric weights
   double spacing_m = 0.0;
 };
 // Cells of size spacing_m; a cell is kept when part of it lies inside the surface (27 samples,
 // ray parity along x) or a surface vertex lies in it. Throws InputError when the surface has no
 // extent or the spacing is not positive.
-SolidLattice solid_lattice(const std::vector<double>& vertices, const std::vector<int32_t>& faces,
-                           double spacing_m);
+SolidLattice solid_lattice(const std::vector<double>& vertices, const std::vector<int32_t>& faces, double spacing_m);
 // The spacing whose lattice has at most about `node_budget` nodes (>= 8).
 SolidLattice solid_lattice_budget(const std::vector<double>& vertices, const std::vector<int32_t>& faces,
                                   int node_budget);
@@ -70,48 +69,48 @@ struct GraspRows {
 
 // One compiled solid organ.
 struct SolidBody {
-  int32_t organ = 0;               // compiled organ index
-  int32_t node_begin = 0;          // first node in State::solid_x / solid_v (#nodes * 3 doubles)
+  int32_t organ = 0;       // compiled organ index
+  int32_t node_begin = 0;  // first node in State::solid_x / solid_v (#nodes * 3 doubles)
   int32_t nnode = 0, ntet = 0;
-  double spacing_m = 0.0;          // lattice cell size
-  std::vector<double> rest;        // #nnode * 3
-  std::vector<double> mass;        // #nnode, kg (sums to the organ's mass)
-  std::vector<int32_t> tets;       // #ntet * 4 local node indices (positive volume)
-  std::vector<double> grad;        // #ntet * 12: gradient g_i of each node's shape function
-  std::vector<double> w_strain;    // #ntet: 2 mu V f (f = inside fraction of the cell)
-  int32_t ncell = 0;               // lattice cells (ntet / 6)
-  std::vector<double> w_volume;    // #ncell: 3 lambda V_cell f (the cell's volume constraint)
-  std::vector<int32_t> cell_nodes; // #ncell * 8 its nodes
-  std::vector<double> cell_grad;   // #ncell * 24: gradient of F_c = sum_j x_j g_j^T per node
-  std::vector<int32_t> embed_tet;  // per organ vertex (v - vert_begin): tetrahedron
-  std::vector<double> embed_w;     // per organ vertex * 4: barycentric weights
-  int32_t npiece = 0;              // closed pieces of the surface with a volume constraint (<= 8)
-  std::vector<int32_t> vert_piece; // per organ vertex: its piece (-1: none)
+  double spacing_m = 0.0;                 // lattice cell size
+  std::vector<double> rest;               // #nnode * 3
+  std::vector<double> mass;               // #nnode, kg (sums to the organ's mass)
+  std::vector<int32_t> tets;              // #ntet * 4 local node indices (positive volume)
+  std::vector<double> grad;               // #ntet * 12: gradient g_i of each node's shape function
+  std::vector<double> w_strain;           // #ntet: 2 mu V f (f = inside fraction of the cell)
+  int32_t ncell = 0;                      // lattice cells (ntet / 6)
+  std::vector<double> w_volume;           // #ncell: 3 lambda V_cell f (the cell's volume constraint)
+  std::vector<int32_t> cell_nodes;        // #ncell * 8 its nodes
+  std::vector<double> cell_grad;          // #ncell * 24: gradient of F_c = sum_j x_j g_j^T per node
+  std::vector<int32_t> embed_tet;         // per organ vertex (v - vert_begin): tetrahedron
+  std::vector<double> embed_w;            // per organ vertex * 4: barycentric weights
+  int32_t npiece = 0;                     // closed pieces of the surface with a volume constraint (<= 8)
+  std::vector<int32_t> vert_piece;        // per organ vertex: its piece (-1: none)
   std::vector<double> piece_rest_volume;  // #npiece, m^3 (signed, as the faces are oriented)
-  int32_t nfixed = 0;              // fixed surface vertices (anchors in the matrix)
-  std::vector<uint8_t> node_anchored;  // #nnode: node of a tetrahedron holding a fixed vertex (empty: none)
-  double anchor_weight = 0.0;      // N/m of each anchor
+  int32_t nfixed = 0;                     // fixed surface vertices (anchors in the matrix)
+  std::vector<uint8_t> node_anchored;     // #nnode: node of a tetrahedron holding a fixed vertex (empty: none)
+  double anchor_weight = 0.0;             // N/m of each anchor
   double young_modulus_pa = 0.0, poisson_ratio = 0.0, damping_ratio = 0.0;
-  double omega1_rad_s = 0.0;       // lowest shear mode estimate
-  double beta_s = 0.0;             // Rayleigh stiffness coefficient
-  double dt_s = 0.0;               // the factor is built for this step
-  int iterations = 0;              // local/global iterations per step
+  double omega1_rad_s = 0.0;  // lowest shear mode estimate
+  double beta_s = 0.0;        // Rayleigh stiffness coefficient
+  double dt_s = 0.0;          // the factor is built for this step
+  int iterations = 0;         // local/global iterations per step
   std::shared_ptr<const SolidFactor> factor;
 };
 
 // Per solid organ scratch (copyable; no Eigen types in this header).
 struct SolidWork {
-  std::vector<double> q;           // #nnode * 3 current iterate (row-major)
-  std::vector<double> s;           // inertial prediction
-  std::vector<double> rhs;         // #nnode * 3
-  std::vector<double> sol;         // #nnode * 3 (column-major scratch for the solver)
-  std::vector<double> quat;        // #ntet * 4 warm start of the rotation fits (w, x, y, z)
-  std::vector<double> rot;         // #ntet * 9 its rotation matrix (column-major)
-  std::vector<double> f_prev;      // #ntet * 9 deformation gradient at the start of the step
-  std::vector<double> r_prev;      // #ntet * 9 its rotation
-  std::vector<double> cell_quat;   // #ncell * 4, #ncell * 9: the cells' rotation fits, as quat / rot
+  std::vector<double> q;          // #nnode * 3 current iterate (row-major)
+  std::vector<double> s;          // inertial prediction
+  std::vector<double> rhs;        // #nnode * 3
+  std::vector<double> sol;        // #nnode * 3 (column-major scratch for the solver)
+  std::vector<double> quat;       // #ntet * 4 warm start of the rotation fits (w, x, y, z)
+  std::vector<double> rot;        // #ntet * 9 its rotation matrix (column-major)
+  std::vector<double> f_prev;     // #ntet * 9 deformation gradient at the start of the step
+  std::vector<double> r_prev;     // #ntet * 9 its rotation
+  std::vector<double> cell_quat;  // #ncell * 4, #ncell * 9: the cells' rotation fits, as quat / rot
   std::vector<double> cell_rot;
-  std::vector<double> fext;        // #nnode * 3 external nodal forces of this step
+  std::vector<double> fext;  // #nnode * 3 external nodal forces of this step
   // the pieces' volume constraints: surface positions and volume gradient (#organ vertices * 3, x
   // block then y then z), the gradients on the nodes (#npiece * #nnode * 3), their responses
   // U = A^-1 G (#nnode x 3 #npiece, column-major), the grasp's share of them (k x 3 #npiece)
@@ -122,7 +121,7 @@ struct SolidWork {
   GraspRows grasp;
   std::vector<double> grasp_z, grasp_chol, grasp_lambda, grasp_target, grasp_rhs;
   // this step: awake, grasp rows held by the tool (0: none); results of the organ's solve
-  int thread = 0;                  // worker thread that solves this organ
+  int thread = 0;  // worker thread that solves this organ
   bool active = false;
   int32_t grasp_active = 0;
   double out_reaction[3] = {0, 0, 0}, out_max_speed2 = 0.0, out_checksum = 0.0;
@@ -137,9 +136,9 @@ std::vector<SolidWork> make_solid_work(const Model& model);
 bool solid_vertex(const Model& model, int32_t v);
 
 struct SolidStats {
-  double max_speed2 = 0.0;   // surface vertices, (m/s)^2
-  double checksum = 0.0;     // finite unless something went wrong
-  bool reaction = false;     // the tool holds a solid organ: reaction_N was set
+  double max_speed2 = 0.0;  // surface vertices, (m/s)^2
+  double checksum = 0.0;    // finite unless something went wrong
+  bool reaction = false;    // the tool holds a solid organ: reaction_N was set
 };
 // Advances every awake solid organ by model.dt_s and writes its surface vertices' positions and
 // velocities; external loads: the tool (force or attachment, targets in work.tool_target), the

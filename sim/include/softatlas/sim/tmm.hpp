@@ -28,26 +28,26 @@ struct Params {
   double rayleigh_mass = 0.1;        // alpha (1/s)
   double rayleigh_stiffness = 0.01;  // beta (s)
   int cg_iterations = 100;
-  double cg_tolerance = 1e-8;        // relative residual
+  double cg_tolerance = 1e-8;  // relative residual
 };
 
 struct Model {
   int32_t nvert = 0, nedge = 0;
-  std::vector<double> rest;          // #V*3 row-major
-  std::vector<double> vert_mass;     // #V
-  std::vector<uint8_t> vert_fixed;   // #V
-  std::vector<double> node_tensor;   // #V*9 row-major K_II
+  std::vector<double> rest;             // #V*3 row-major
+  std::vector<double> vert_mass;        // #V
+  std::vector<uint8_t> vert_fixed;      // #V
+  std::vector<double> node_tensor;      // #V*9 row-major K_II
   std::vector<int32_t> edge_a, edge_b;  // a < b
-  std::vector<double> edge_tensor;   // #E*9 row-major K_ab (K_ba = K_ab^T)
-  std::vector<int32_t> faces;        // #F*3 (volume measurement)
+  std::vector<double> edge_tensor;      // #E*9 row-major K_ab (K_ba = K_ab^T)
+  std::vector<int32_t> faces;           // #F*3 (volume measurement)
   Params params;
   double lame_lambda_plane = 0.0, lame_mu = 0.0;  // plane-stress Lame coefficients
 };
 
 // Throws InputError("tensor-mass: ...") on empty meshes, bad indices, degenerate triangles,
 // non-finite coordinates or out-of-range parameters. V: #V*3 metres, F: #F*3.
-Model compile(const std::vector<double>& V, const std::vector<int32_t>& F,
-              const std::vector<int32_t>& fixed, const Params& params);
+Model compile(const std::vector<double>& V, const std::vector<int32_t>& F, const std::vector<int32_t>& fixed,
+              const Params& params);
 
 struct Tool {
   // force mode: a total force split evenly over verts; attach mode: verts move by offset over
@@ -57,11 +57,11 @@ struct Tool {
   std::array<double, 3> force_N{0, 0, 0};
   std::array<double, 3> offset_m{0, 0, 0};
   int iterations = 30, progress = 0;
-  std::vector<double> anchor;        // attach: start positions (#verts*3)
+  std::vector<double> anchor;  // attach: start positions (#verts*3)
 };
 
 struct State {
-  std::vector<double> x, v;          // #V*3
+  std::vector<double> x, v;  // #V*3
   double time_s = 0.0;
   Tool tool;
 };
@@ -74,14 +74,13 @@ State make_state(const Model& model);
 Work make_work(const Model& model);
 
 void pull_force(State& state, const std::vector<int32_t>& verts, const std::array<double, 3>& force_N);
-void attach(State& state, const std::vector<int32_t>& verts, const std::array<double, 3>& offset_m,
-            int iterations);
+void attach(State& state, const std::vector<int32_t>& verts, const std::array<double, 3>& offset_m, int iterations);
 void release(State& state);
 
 struct StepInfo {
   int cg_iterations = 0;
   double cg_residual = 0.0;
-  double accel_sum = 0.0;            // sum |dv / dt| over free vertices (paper 000 stopping rule)
+  double accel_sum = 0.0;  // sum |dv / dt| over free vertices (paper 000 stopping rule)
   bool finite = true;
 };
 // One implicit Euler step of dt_s. No allocation, no throw.

@@ -18,9 +18,9 @@ enum class Grid { tiny, quick, full };
 struct Options {
   Grid grid = Grid::full;
   std::string out_dir;
-  std::string data_dir;       // ../shared/data: meshes/sofa/liver-smooth.obj
-  bool paper_tables = true;   // accuracy: also reproduce paper 000 Tables I-III and the sphere test
-  bool fit = true;            // accuracy: parameter fitting against the FEM reference
+  std::string data_dir;      // ../shared/data: meshes/sofa/liver-smooth.obj
+  bool paper_tables = true;  // accuracy: also reproduce paper 000 Tables I-III and the sphere test
+  bool fit = true;           // accuracy: parameter fitting against the FEM reference
 };
 
 // Closed-form checks of the FEM reference (compressed block, cantilever under refinement).

@@ -16,17 +16,17 @@ namespace softatlas::evidence {
 
 // Model and setting of one run. Names are those of results.json.
 struct ModelSpec {
-  std::string model = "nmsm";         // tmsm | cmsm | nmsm | nmsm_p2 | flexion | solid | tmm | fem
+  std::string model = "nmsm";                // tmsm | cmsm | nmsm | nmsm_p2 | flexion | solid | tmm | fem
   std::string integrator = "semi_implicit";  // verlet | semi_implicit | implicit (tmm, fem: implicit)
   double dt_s = 1e-3;
   bool guard = true;
   // mass-spring material (paper 000 eqs 8-10, paper 003), SI
   double young_modulus_pa = 4000.0;
   double thickness_m = 1e-3;
-  double total_mass_kg = 0.0;         // 0: density * enclosed volume
+  double total_mass_kg = 0.0;  // 0: density * enclosed volume
   double density_kg_m3 = 1060.0;
-  double stiffness = 0.0;             // > 0: uniform spring k (N/m) instead of eq 9
-  double damping = -1.0;              // >= 0: uniform d instead of eq 10
+  double stiffness = 0.0;  // > 0: uniform spring k (N/m) instead of eq 9
+  double damping = -1.0;   // >= 0: uniform d instead of eq 10
   double damping_scale = 1.0;
   double vertex_mass_kg = 0.0;
   double elastica_a = 1.0, elastica_b = 0.1;
@@ -52,8 +52,8 @@ double paper_b(int faces);
 
 struct StepOut {
   bool finite = true;
-  bool guard_acted = false;   // sub-stepped, fell back to implicit, restored, or clamped a force
-  double accel_sum = 0.0;     // paper 000 stopping rule
+  bool guard_acted = false;  // sub-stepped, fell back to implicit, restored, or clamped a force
+  double accel_sum = 0.0;    // paper 000 stopping rule
 };
 
 class Simulation {
@@ -69,9 +69,9 @@ class Simulation {
   virtual StepOut step() = 0;
   virtual void positions(std::vector<double>& out) const = 0;  // #V*3 in surface order
   virtual double volume() const = 0;
-  virtual std::array<double, 3> reaction() = 0;                // force the organ exerts on the tool
+  virtual std::array<double, 3> reaction() = 0;  // force the organ exerts on the tool
   virtual double energy() const = 0;
-  virtual double stable_dt() const { return 0.0; }             // 0 = not estimated
+  virtual double stable_dt() const { return 0.0; }  // 0 = not estimated
   virtual std::string plan() const { return ""; }
 };
 

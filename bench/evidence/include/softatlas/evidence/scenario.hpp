@@ -33,10 +33,10 @@ std::vector<int32_t> nearest_face(const TriMesh& m, const std::array<double, 3>&
 std::array<double, 3> top_point(const TriMesh& m);  // the vertex with the largest y
 
 struct LoadCase {
-  std::string name;             // results.json "load"
-  bool attach = false;          // false: force pulling (N); true: position attachment (m)
+  std::string name;     // results.json "load"
+  bool attach = false;  // false: force pulling (N); true: position attachment (m)
   std::array<double, 3> value{0, 0, 0};
-  int attach_iterations = 30;   // paper 000 Table II
+  int attach_iterations = 30;  // paper 000 Table II
 };
 // The loads of the accuracy sweep: paper 000 Table I forces, Table II displacements, a 50 mm pull.
 std::vector<LoadCase> accuracy_loads(bool quick);

@@ -13,7 +13,7 @@ struct Series {
   std::string marker = "circle";  // circle | square | triangle | diamond | none
   bool line = false;              // connect the points in order
   bool dashed = false;
-  std::vector<double> x, y;       // non-finite or non-positive (on log axes) points are skipped
+  std::vector<double> x, y;  // non-finite or non-positive (on log axes) points are skipped
 };
 
 struct Plot {
@@ -29,14 +29,14 @@ struct HeatMap {
   std::string title;
   std::vector<std::string> xlabels, ylabels;  // nx, ny; y runs upwards
   std::vector<int> cells;
-  std::vector<std::string> cell_text;         // optional, same size as cells
+  std::vector<std::string> cell_text;  // optional, same size as cells
 };
 struct Legend {
   std::vector<std::string> names, colors;
 };
 // Small multiples: maps laid out in `columns` columns with one shared legend.
-std::string render(const std::vector<HeatMap>& maps, const Legend& legend, int columns,
-                   const std::string& title, const std::string& xlabel, const std::string& ylabel);
+std::string render(const std::vector<HeatMap>& maps, const Legend& legend, int columns, const std::string& title,
+                   const std::string& xlabel, const std::string& ylabel);
 
 // A qualitative palette (Tableau 10).
 const std::string& color(int index);
