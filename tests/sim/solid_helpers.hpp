@@ -58,6 +58,20 @@ inline sim::SceneDesc liver_scene(const std::string& mesh, double dt, double you
   return s;
 }
 
+// One solid organ of a CT-built set (data/meshes, mm) with its build's fixed vertices, implicit at
+// the atlas's dt 8 ms, never asleep.
+inline sim::SceneDesc ct_solid_scene(const std::string& name, const std::string& mesh, std::vector<int32_t> fixed) {
+  sim::SceneDesc scene;
+  sim::OrganDesc o = test::organ(name, test::read_obj(test::project_data(mesh)), 1e-3);
+  o.material.model = sim::ModelKind::solid;
+  o.fixed = std::move(fixed);
+  scene.organs.push_back(o);
+  scene.integrator = sim::Integrator::implicit;
+  scene.dt_s = 8e-3;
+  scene.allow_sleep = false;
+  return scene;
+}
+
 inline std::vector<int32_t> global(const sim::Model& m, const std::vector<int32_t>& src) {
   std::vector<int32_t> out;
   for (int32_t v : src) {

@@ -215,15 +215,8 @@ double piece_volume(const sim::Model& m, const sim::State& s, size_t face_begin,
 // by +6 %, and one constraint for the whole organ made the 90-face piece take up the large one's
 // change (it did not come back: 2.9 mm). Within 2 % (the band is 0.5 %), and it comes back.
 TEST(SolidModel, ThinOrganInTwoPiecesKeepsEachPiecesVolume) {
-  const test::Mesh vein = test::read_obj(test::project_data("meshes/ct_portal_vein.obj"));
-  sim::SceneDesc scene;
-  sim::OrganDesc o = test::organ("portal_vein", vein, 1e-3);
-  o.material.model = sim::ModelKind::solid;
-  o.fixed = {24, 299, 329, 412, 558, 721};
-  scene.organs.push_back(o);
-  scene.integrator = sim::Integrator::implicit;
-  scene.dt_s = 8e-3;
-  scene.allow_sleep = false;
+  const sim::SceneDesc scene =
+      ct_solid_scene("portal_vein", "meshes/ct_portal_vein.obj", {24, 299, 329, 412, 558, 721});
   const sim::Model m = sim::compile(scene);
   ASSERT_EQ(m.solids.size(), 1u);
   EXPECT_EQ(m.solids[0].npiece, 2);
@@ -270,15 +263,7 @@ TEST(SolidModel, ThinOrganInTwoPiecesKeepsEachPiecesVolume) {
 // from an anchor flung the slab's far side: 39 mm alone, 120 mm in its organ set; the vertices at
 // the anchors are not held now (grasp_rows), and nothing moves much more than the push (21 mm).
 TEST(SolidModel, HoldNextToAnAnchorDoesNotFling) {
-  const test::Mesh mesh = test::read_obj(test::project_data("meshes/ct_pancreas.obj"));
-  sim::SceneDesc scene;
-  sim::OrganDesc o = test::organ("pancreas", mesh, 1e-3);
-  o.material.model = sim::ModelKind::solid;
-  o.fixed = {217, 224, 237, 340, 376};
-  scene.organs.push_back(o);
-  scene.integrator = sim::Integrator::implicit;
-  scene.dt_s = 8e-3;
-  scene.allow_sleep = false;
+  const sim::SceneDesc scene = ct_solid_scene("pancreas", "meshes/ct_pancreas.obj", {217, 224, 237, 340, 376});
   const sim::Model m = sim::compile(scene);
   ASSERT_EQ(m.solids.size(), 1u);
   const int32_t va = 370;  // nearest the portal vein
@@ -296,7 +281,7 @@ TEST(SolidModel, HoldNextToAnAnchorDoesNotFling) {
   for (int32_t v = 0; v < m.nvert; ++v) {
     if (m.vert_inv_mass[v] == 0 || (rest(v) - rest(va)).norm() > 0.010) continue;
     patch.push_back(v);
-    for (int32_t f : o.fixed) nearest_anchor = std::min(nearest_anchor, (rest(v) - rest(f)).norm());
+    for (int32_t f : scene.organs[0].fixed) nearest_anchor = std::min(nearest_anchor, (rest(v) - rest(f)).norm());
   }
   ASSERT_GT(patch.size(), 50u);
   EXPECT_LT(nearest_anchor, 2.5e-3);
