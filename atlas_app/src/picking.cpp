@@ -134,7 +134,7 @@ PickHit PickBvh::intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f&
       const float t = e2.dot(q) * inv_det;
       if (t <= 0.0f || t >= best) continue;
       const Eigen::Vector3f at = origin + t * dir;
-      if (clip.head<3>().dot(at) + clip[3] > 0.0f) continue;  // cut away by a slice plane
+      if (cut_away(clip, at)) continue;  // by a slice plane
       best = t;
       hit.organ = organ;
       hit.triangle = tri_local_[static_cast<size_t>(tri)];

@@ -135,7 +135,7 @@ bool Viewer::label_anchor(size_t v, Eigen::Vector3f& p) const {
   const std::vector<float>& x = positions_[v];
   for (size_t i = 0; i + 2 < x.size(); i += 3) {
     const Eigen::Vector3f q(x[i], x[i + 1], x[i + 2]);
-    if (c.head<3>().dot(q) + c[3] > 0) continue;  // cut away
+    if (cut_away(c, q)) continue;
     sum += q.cast<double>();
     ++kept;
   }
@@ -225,13 +225,14 @@ void Viewer::end() {
   for (size_t v = 0; v < styles.size(); ++v) {
     if (!styles[v].visible) continue;
     const std::string text = overlay_text(scene_.display_name(static_cast<int>(v)));
+    const bool hover = hover_names && static_cast<int>(v) == hovered;
     Eigen::Vector3f anchor;
-    if (!label_anchor(v, anchor)) continue;
+    if ((!labeled[v] && !hover) || !label_anchor(v, anchor)) continue;
     if (labeled[v]) {
       float x, y;
       if (camera.project(anchor, x, y))
         tags.push_back({ImVec2(x, y), ImVec2(x, y), ImGui::CalcTextSize(text.c_str()), text});
-    } else if (hover_names && static_cast<int>(v) == hovered) {
+    } else {
       label(anchor, text, IM_COL32(255, 255, 255, 255));
     }
   }

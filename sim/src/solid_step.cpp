@@ -483,11 +483,11 @@ void compile_solids(const SceneDesc& scene, Model& m) {
     b.anchor_weight = std::max(1e4, 1e3 * diag_max);
     auto factor = std::make_shared<SolidFactor>();
     factor->base_rhs = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(b.nnode));
+    b.node_anchored.assign(b.nnode, 0);
     for (int32_t v = 0; v < nv; ++v) {
       if (m.vert_inv_mass[r.vert_begin + v] > 0 || b.embed_tet[v] < 0) continue;
       ++b.nfixed;
       const int32_t* n = &b.tets[4 * b.embed_tet[v]];
-      if (b.node_anchored.empty()) b.node_anchored.assign(b.nnode, 0);
       for (int i = 0; i < 4; ++i) b.node_anchored[n[i]] = 1;
       const double* bw = &b.embed_w[4 * v];
       for (int i = 0; i < 4; ++i) {
@@ -582,7 +582,6 @@ GraspRows grasp_rows(const SolidBody& b, const std::vector<int32_t>& local) {
   g.row.resize(local.size());
   std::vector<int32_t> tet_row;  // tetrahedra of the held vertices, in order of first appearance
   auto at_anchor = [&](int32_t t) {
-    if (b.node_anchored.empty()) return false;
     for (int i = 0; i < 4; ++i)
       if (b.node_anchored[b.tets[4 * t + i]]) return true;
     return false;

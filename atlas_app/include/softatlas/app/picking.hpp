@@ -11,6 +11,11 @@
 
 namespace softatlas::app {
 
+// A slice plane's clip (n, d) (SlicePlane::clip) cuts point p away when n.p + d > 0.
+inline bool cut_away(const Eigen::Vector4f& clip, const Eigen::Vector3f& p) {
+  return clip.head<3>().dot(p) + clip[3] > 0.0f;
+}
+
 struct PickHit {
   int organ = -1;           // index of the organ mesh (as added), -1: no hit
   int triangle = -1;        // local face index in that organ

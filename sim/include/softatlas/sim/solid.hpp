@@ -88,7 +88,7 @@ struct SolidBody {
   std::vector<int32_t> vert_piece;        // per organ vertex: its piece (-1: none)
   std::vector<double> piece_rest_volume;  // #npiece, m^3 (signed, as the faces are oriented)
   int32_t nfixed = 0;                     // fixed surface vertices (anchors in the matrix)
-  std::vector<uint8_t> node_anchored;     // #nnode: node of a tetrahedron holding a fixed vertex (empty: none)
+  std::vector<uint8_t> node_anchored;     // #nnode: node of a tetrahedron holding a fixed vertex
   double anchor_weight = 0.0;             // N/m of each anchor
   double young_modulus_pa = 0.0, poisson_ratio = 0.0, damping_ratio = 0.0;
   double omega1_rad_s = 0.0;  // lowest shear mode estimate
