@@ -180,8 +180,8 @@ struct OrganJob {
 struct BuiltOrgan {
   json quality;
   io::OrganEntry entry;
-  std::string log;          // its progress lines
-  std::string mesh_sha256;  // mesh mode: the input's hash for the provenance
+  std::string log;                         // its progress lines
+  std::string mesh_sha256;                 // mesh mode: the input's hash for the provenance
   double surface_s = 0.0, remesh_s = 0.0;  // wall
   double cpu_s = 0.0;                      // the thread's CPU time for this organ
 };
@@ -673,7 +673,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
       e.material.density_kg_m3 = 1900;  // cortical + trabecular bone
     }
     out.entry = std::move(e);
-    };
+  };
   const Clock::time_point organs_t0 = Clock::now();
   result.jobs = effective_jobs(o.jobs, jobs.size());
   build_in_parallel(jobs.size(), result.jobs, organ_cost(jobs, labels), build_one, built, o.quiet);

@@ -273,7 +273,8 @@ void replicate_case(BuildOptions* b, int copies, const fs::path& dir, json* repo
           it->second = free_id;
           used.insert(free_id);
           const std::string from = label_name(id), to = label_name(free_id);
-          if (!b->budgets.count(to)) b->budgets[to] = b->budgets.count(from) ? b->budgets[from] : default_face_budget(from);
+          if (!b->budgets.count(to))
+            b->budgets[to] = b->budgets.count(from) ? b->budgets[from] : default_face_budget(from);
           renamed[to] = from;
         }
         val = static_cast<float>(it->second);

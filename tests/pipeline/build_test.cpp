@@ -233,11 +233,12 @@ void expect_same_sets(const std::string& a, const std::string& b) {
 }
 
 // Organs are built on several threads (issue 14, speed): the set must not depend on how many.
-// Seven structures of the slab of very different cost (liver, the vertebrae with their
-// crossing repair, thin ribs), serial against 2 and 3 jobs.
+// Seven structures of the slab of different cost (the vertebrae with their crossing repair,
+// thin ribs, vessels), serial against 2 and 3 jobs (more threads than this machine's cores).
 TEST(Build, ParallelBuildEqualsTheSerialOneByteForByte) {
   test::Scratch tmp;
-  const std::string organs = "spleen,pancreas,vertebrae_T11,vertebrae_T12,rib_left_10,aorta,portal_vein_and_splenic_vein";
+  const std::string organs =
+      "pancreas,vertebrae_T11,vertebrae_T12,rib_left_10,aorta,inferior_vena_cava,portal_vein_and_splenic_vein";
   for (const char* jobs : {"1", "2", "3"})
     ASSERT_EQ(cli_main({"build", abdomen("ct_from_dicom.nii.gz"), "--labels", abdomen("example_seg_dicom.nii.gz"),
                         "--organs", organs, "--jobs", jobs, "-q", "-o", tmp(std::string("set") + jobs)}),
@@ -253,9 +254,9 @@ TEST(Build, ParallelBuildEqualsTheSerialOneByteForByte) {
   const io::OrganEntry* t11 = set.find("vertebrae_T11");
   ASSERT_NE(t11, nullptr);
   ASSERT_GT(voxels, 0u);
-  EXPECT_NEAR(softatlas::sim::enclosed_volume(t11->mesh.vertices, t11->mesh.faces) /
-                  (voxels * labels.voxel_volume_mm3()),
-              1.0, 0.10);
+  EXPECT_NEAR(
+      softatlas::sim::enclosed_volume(t11->mesh.vertices, t11->mesh.faces) / (voxels * labels.voxel_volume_mm3()), 1.0,
+      0.10);
 }
 
 TEST(Build, BareMaskWithoutANameIsAnError) {
