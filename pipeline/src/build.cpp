@@ -7,14 +7,18 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <ctime>
 #include <filesystem>
 #include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <set>
+#include <thread>
 
 #include "softatlas/io/ct_image.hpp"
 #include "softatlas/io/organ_set.hpp"
@@ -58,13 +62,34 @@ using Clock = std::chrono::steady_clock;
 
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
+// CPU seconds of the calling thread (user + system): unlike wall time, not inflated when other
+// processes share the cores.
+double thread_cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+// Progress lines on stderr, or into `buffer` (an organ built on a worker thread: its lines are
+// printed in organ order once the organs before it are done, so the output does not depend on
+// the number of jobs).
 struct Progress {
   bool quiet;
+  std::string* buffer = nullptr;
   void operator()(const char* fmt, const std::string& a = "", const std::string& b = "") const {
     if (quiet) return;
-    std::fprintf(stderr, "[softatlas build] ");
-    std::fprintf(stderr, fmt, a.c_str(), b.c_str());
-    std::fprintf(stderr, "\n");
+    const std::string line = "[softatlas build] " + format(fmt, a, b) + "\n";
+    if (buffer)
+      *buffer += line;
+    else
+      std::fputs(line.c_str(), stderr);
+  }
+  static std::string format(const char* fmt, const std::string& a, const std::string& b) {
+    const int n = std::snprintf(nullptr, 0, fmt, a.c_str(), b.c_str());
+    std::string out(static_cast<size_t>(std::max(n, 0)) + 1, '\0');
+    std::snprintf(out.data(), out.size(), fmt, a.c_str(), b.c_str());
+    out.resize(static_cast<size_t>(std::max(n, 0)));
+    return out;
   }
 };
 
@@ -150,6 +175,91 @@ struct OrganJob {
   std::string mesh_path;    // mesh mode
   int budget = 0;
 };
+
+// What one organ's build produced; filled on a worker thread, read after all have joined.
+struct BuiltOrgan {
+  json quality;
+  io::OrganEntry entry;
+  std::string log;                         // its progress lines
+  std::string mesh_sha256;                 // mesh mode: the input's hash for the provenance
+  double surface_s = 0.0, remesh_s = 0.0;  // wall
+  double cpu_s = 0.0;                      // the thread's CPU time for this organ
+};
+
+// 0 = one per hardware thread; never more than there are organs.
+size_t effective_jobs(int requested, size_t organs) {
+  size_t n = requested > 0 ? static_cast<size_t>(requested) : std::max(1u, std::thread::hardware_concurrency());
+  return std::max<size_t>(1, std::min(n, organs));
+}
+
+// Rough work per organ, for the order in which workers pick organs up (largest first, so that
+// the liver does not start last and leave one core idle at the end): voxels of the label, or
+// bytes of the mesh file. Only the start order depends on it, never the result.
+std::vector<double> organ_cost(const std::vector<OrganJob>& jobs, const std::vector<LoadedLabels>& labels) {
+  std::vector<double> cost;
+  for (const OrganJob& j : jobs) {
+    double c = 0;
+    if (j.source >= 0) {
+      for (int v : j.values) {
+        const auto it = labels[j.source].counts.find(v);
+        if (it != labels[j.source].counts.end()) c += static_cast<double>(it->second);
+      }
+    } else if (!j.mesh_path.empty()) {
+      std::error_code ec;
+      const auto bytes = fs::file_size(j.mesh_path, ec);
+      c = ec ? 0.0 : static_cast<double>(bytes);
+    }
+    cost.push_back(c + 10.0 * j.budget);
+  }
+  return cost;
+}
+
+// Runs build_one(i, built[i]) for every organ on `jobs` threads (the calling one included),
+// largest first. Progress is printed in organ order as soon as the organs before are done. The
+// outcome is the serial build's: if organs fail, the first failing organ's error is rethrown
+// (organs after it are not started; the ones before it all finish), and only the lines up to it
+// are printed.
+template <class BuildOne>
+void build_in_parallel(size_t n, size_t jobs, const std::vector<double>& cost, BuildOne& build_one,
+                       std::vector<BuiltOrgan>& built, bool quiet) {
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  if (jobs > 1) std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return cost[a] > cost[b]; });
+  std::atomic<size_t> next{0};
+  std::mutex mu;  // guards everything below
+  std::vector<char> finished(n, 0);
+  std::vector<std::exception_ptr> errors(n);
+  size_t first_error = n, printed = 0;
+  bool printing = true;
+  auto work = [&] {
+    for (size_t k; (k = next.fetch_add(1)) < n;) {
+      const size_t i = order[k];
+      bool skip;
+      {
+        std::lock_guard<std::mutex> lock(mu);
+        skip = i > first_error;
+      }
+      std::exception_ptr error;
+      if (!skip) try {
+          build_one(i, built[i]);
+        } catch (...) {
+          error = std::current_exception();
+        }
+      std::lock_guard<std::mutex> lock(mu);
+      finished[i] = 1;
+      if (error) errors[i] = error, first_error = std::min(first_error, i);
+      for (; printing && printed < n && finished[printed]; ++printed) {
+        if (!quiet) std::fputs(built[printed].log.c_str(), stderr);
+        if (errors[printed]) printing = false;
+      }
+    }
+  };
+  std::vector<std::thread> threads;
+  for (size_t t = 1; t < jobs; ++t) threads.emplace_back(work);
+  work();
+  for (auto& t : threads) t.join();
+  if (first_error < n) std::rethrow_exception(errors[first_error]);
+}
 
 std::string organ_from_mesh_path(const std::string& path) {
   const std::string stem = fs::path(path).stem().string();
@@ -431,13 +541,20 @@ BuildResult build_organ_set(const BuildOptions& o) {
   quality["version"] = SOFTATLAS_VERSION;
   quality["space"] = "RAS";
   quality["units"] = "mm";
-  json qorgans = json::object();
-  for (const OrganJob& j : jobs) {
+  // Each organ's surface -> repair -> remesh chain is independent of the others (its own VTK
+  // and CGAL objects; the label volumes are only read), so organs are built on `jobs` threads.
+  // Results land in their organ's slot and are gathered in organ order: the set, quality.json
+  // and the progress lines are the same for any number of jobs.
+  std::vector<BuiltOrgan> built(jobs.size());
+  auto build_one = [&](size_t index, BuiltOrgan& out) {
+    const OrganJob& j = jobs[index];
+    const Progress say{o.quiet, &out.log};
+    const double cpu0 = thread_cpu_seconds();
     json q;
     io::TriMesh stage3;
     double reference_volume = 0.0;  // mask volume (labels) or input volume (closed meshes)
     double voxel_mm = 0.0;          // the label's largest voxel spacing (labels only)
-    t0 = Clock::now();
+    auto t0 = Clock::now();
     if (!j.mesh_path.empty()) {
       say("surface: %s from mesh %s", j.name, j.mesh_path);
       stage3 = io::read_mesh(j.mesh_path);
@@ -450,7 +567,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
       q["input_boundary_edges"] = in.boundary_edges;
       q["input_components"] = in.components;
       if (in.closed()) reference_volume = std::abs(in.signed_volume_mm3);
-      provenance["mesh:" + j.mesh_path] = sha256_file(j.mesh_path);
+      out.mesh_sha256 = sha256_file(j.mesh_path);
     } else {
       const LoadedLabels& l = labels[j.source];
       const std::string where = l.source.path + ": " + j.name;
@@ -470,7 +587,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
         q["notes"].push_back("the label has " + std::to_string(s.large_pieces) +
                              " large pieces; all are kept as separate closed surfaces");
     }
-    result.times.add("surface", since(t0));
+    out.surface_s = since(t0);
 
     t0 = Clock::now();
     say("remesh: %s to %s faces (CGAL repair, isotropic remeshing, edge collapse)", j.name, std::to_string(j.budget));
@@ -488,7 +605,8 @@ BuildResult build_organ_set(const BuildOptions& o) {
     }
     const RemeshResult r = repair_and_remesh(
         stage3, ro, (j.mesh_path.empty() ? labels[j.source].source.path : j.mesh_path) + ": " + j.name);
-    result.times.add("remesh", since(t0));
+    out.remesh_s = since(t0);
+    out.cpu_s = thread_cpu_seconds() - cpu0;
 
     const SurfaceReport rep = inspect_surface(r.mesh);
     const double volume = softatlas::sim::enclosed_volume(r.mesh.vertices, r.mesh.faces);
@@ -511,6 +629,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
       q["hausdorff_voxels"] = r.hausdorff_mm / voxel_mm;
       q["isotropic_hausdorff_mm"] = r.isotropic_hausdorff_mm;
       q["volume_offset_mm"] = r.volume_offset_mm;
+      q["volume_offset_max_mm"] = r.volume_offset_max_mm;
       q["shape_within_bound"] = r.hausdorff_mm <= ro.max_hausdorff_mm;
       if (r.hausdorff_mm > ro.max_hausdorff_mm) {
         const std::string note = "the surface is " + fmt(r.hausdorff_mm) + " mm (" + fmt(r.hausdorff_mm / voxel_mm) +
@@ -539,7 +658,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
             fmt(volume / 1000.0) + " mL" +
             (reference_volume > 0 ? " (reference " + fmt(reference_volume / 1000.0) + " mL)" : "") + ", Hausdorff " +
             fmt(r.hausdorff_mm) + " mm");
-    qorgans[j.name] = q;
+    out.quality = std::move(q);
 
     io::OrganEntry e;
     e.name = j.name;
@@ -553,7 +672,23 @@ BuildResult build_organ_set(const BuildOptions& o) {
       e.material.model = "rigid";
       e.material.density_kg_m3 = 1900;  // cortical + trabecular bone
     }
-    set.organs.push_back(std::move(e));
+    out.entry = std::move(e);
+  };
+  const Clock::time_point organs_t0 = Clock::now();
+  result.jobs = effective_jobs(o.jobs, jobs.size());
+  build_in_parallel(jobs.size(), result.jobs, organ_cost(jobs, labels), build_one, built, o.quiet);
+  result.times.add("organs_wall", since(organs_t0));
+  json qorgans = json::object();
+  json organ_seconds = json::object();
+  for (size_t i = 0; i < jobs.size(); ++i) {
+    BuiltOrgan& b = built[i];
+    result.times.add("surface", b.surface_s);
+    result.times.add("remesh", b.remesh_s);
+    result.organ_seconds.push_back({jobs[i].name, b.surface_s, b.remesh_s, b.cpu_s});
+    organ_seconds[jobs[i].name] = {{"surface", b.surface_s}, {"remesh", b.remesh_s}, {"cpu", b.cpu_s}};
+    if (!jobs[i].mesh_path.empty()) provenance["mesh:" + jobs[i].mesh_path] = b.mesh_sha256;
+    qorgans[jobs[i].name] = std::move(b.quality);
+    set.organs.push_back(std::move(b.entry));
   }
   quality["organs"] = qorgans;
 
@@ -602,6 +737,7 @@ BuildResult build_organ_set(const BuildOptions& o) {
   json times = json::object();
   for (const auto& [k, v] : result.times.seconds) times[k] = v;
   quality["stage_seconds"] = times;
+  quality["organ_seconds"] = organ_seconds;
   result.quality_json = quality.dump(2) + "\n";
   result.organs = set.organs.size();
   result.connections = set.connections.size();

@@ -12,9 +12,12 @@
 #include <random>
 #include <algorithm>
 #include <cmath>
+#include <set>
+#include <sys/resource.h>
 
 #include "softatlas/io/cli.hpp"
 #include "softatlas/io/cli_number.hpp"
+#include "softatlas/io/mesh_io.hpp"
 #include "softatlas/pipeline/bench_segment.hpp"
 #include "softatlas/pipeline/build.hpp"
 #include "softatlas/pipeline/export_web.hpp"
@@ -72,6 +75,7 @@ struct BuildCli {
   std::string ct, seeds, config, output;
   std::vector<std::string> labels, meshes, organs, budgets;
   double connect_distance = -1, connect_spacing = -1, stiffness = -1;
+  int jobs = 0;
   bool quiet = false;
 
   void add_to(CLI::App& app, bool need_output) {
@@ -90,6 +94,8 @@ struct BuildCli {
         ->check(io::finite_in(0, 1000));
     app.add_option("--stiffness", stiffness, "connection spring stiffness, N/m (default 50)")
         ->check(io::finite_in(0, 1e6));
+    app.add_option("-j,--jobs", jobs, "organs built at once, one thread each (default: one per core)")
+        ->check(CLI::Range(0, 256));
     app.add_flag("-q,--quiet", quiet, "no progress output");
     auto* o = app.add_option("-o,--output", output, "output organ-set folder (must not exist)");
     if (need_output) o->required();
@@ -120,6 +126,7 @@ struct BuildCli {
     if (stiffness >= 0) b.connect.stiffness = stiffness;
     b.output = output;
     b.quiet = quiet;
+    b.jobs = jobs;
     return b;
   }
 };
@@ -201,81 +208,228 @@ struct BenchArgs {
   int repeat = 1;
   std::string name;
   std::vector<int> resample_dims;
+  std::vector<int> compare_jobs;  // e.g. 1,2: the same build with each job count, side by side
+  int replicate = 1;              // copies of the label map stacked along the slices
 };
 
+// CPU time of the whole process so far (user, system; every thread).
+std::pair<double, double> process_cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  auto s = [](const timeval& t) { return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec); };
+  return {s(u.ru_utime), s(u.ru_stime)};
+}
+
+// A larger case from the data at hand: `copies` copies of the CT and of each label map stacked
+// along the slice axis; the labels of copy c > 0 get TotalSegmentator ids absent from the map (in
+// id order), with the face budget of the label they copy. Real shapes, real sizes, `copies` times
+// the structures (the slab's 31 labels x 2 = 62, about the ~60 of a whole abdomen).
+void replicate_case(BuildOptions* b, int copies, const fs::path& dir, json* report) {
+  const Volume ct = read_volume(b->ct_path);
+  auto stack = [&](const Volume& v) {
+    Volume out = v;
+    out.dims[2] = v.dims[2] * copies;
+    out.values.clear();
+    for (int c = 0; c < copies; ++c) out.values.insert(out.values.end(), v.values.begin(), v.values.end());
+    out.label_names.clear();
+    return out;
+  };
+  b->ct_path = (dir / "ct.nii.gz").string();
+  write_label_nifti(stack(ct), b->ct_path);
+  std::set<int> used;
+  std::vector<Volume> maps;
+  for (const LabelSource& src : b->labels) {
+    Volume l = read_volume(src.path);
+    if (l.dims != ct.dims)
+      throw InputError(src.path, "--replicate needs label maps on the CT's grid (" + std::to_string(l.dims[0]) + "x" +
+                                     std::to_string(l.dims[1]) + "x" + std::to_string(l.dims[2]) + " here)");
+    if (!src.organ.empty()) throw InputError(src.path, "--replicate takes multi-label maps, not NAME=MASK");
+    // Values as TotalSegmentator ids (a map's own table names them).
+    for (float& x : l.values) {
+      const int v = static_cast<int>(std::lround(x));
+      if (v == 0) continue;
+      const int id = l.label_names.empty() ? v : label_id(l.label_names.count(v) ? l.label_names.at(v) : "");
+      x = static_cast<float>(id);
+      if (id > 0) used.insert(id);
+    }
+    maps.push_back(std::move(l));
+  }
+  std::map<int, int> next_id;  // (copy * 1000 + id) -> new id
+  int free_id = 1;
+  json renamed = json::object();
+  for (size_t i = 0; i < maps.size(); ++i) {
+    Volume out = stack(maps[i]);
+    const size_t per_copy = maps[i].values.size();
+    for (int c = 1; c < copies; ++c)
+      for (size_t x = 0; x < per_copy; ++x) {
+        float& val = out.values[c * per_copy + x];
+        const int id = static_cast<int>(std::lround(val));
+        if (id <= 0) continue;
+        auto [it, fresh] = next_id.try_emplace(c * 1000 + id, 0);
+        if (fresh) {
+          while (free_id <= label_count() && (used.count(free_id) || label_name(free_id).empty())) ++free_id;
+          if (free_id > label_count())
+            throw InputError("--replicate", "not enough TotalSegmentator ids left for the copies");
+          it->second = free_id;
+          used.insert(free_id);
+          const std::string from = label_name(id), to = label_name(free_id);
+          if (!b->budgets.count(to))
+            b->budgets[to] = b->budgets.count(from) ? b->budgets[from] : default_face_budget(from);
+          renamed[to] = from;
+        }
+        val = static_cast<float>(it->second);
+      }
+    b->labels[i].path = (dir / ("labels" + std::to_string(i) + ".nii.gz")).string();
+    write_label_nifti(out, b->labels[i].path);
+  }
+  (*report)["copies"] = copies;
+  (*report)["copied_labels"] = renamed;
+}
+
+// Every file of two organ sets equal byte for byte, quality.json apart from its timings.
+bool same_organ_sets(const fs::path& a, const fs::path& b, std::string* first_difference) {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::recursive_directory_iterator(a))
+    if (e.is_regular_file()) files.push_back(fs::relative(e.path(), a));
+  size_t count_b = 0;
+  for (const auto& e : fs::recursive_directory_iterator(b)) count_b += e.is_regular_file();
+  if (count_b != files.size()) return *first_difference = "number of files", false;
+  for (const fs::path& f : files) {
+    std::string x = io::read_text_file((a / f).string()), y = io::read_text_file((b / f).string());
+    if (f == "quality.json") {
+      json qx = json::parse(x), qy = json::parse(y);
+      for (const char* k : {"stage_seconds", "organ_seconds"}) qx.erase(k), qy.erase(k);
+      x = qx.dump(), y = qy.dump();
+    }
+    if (x != y) return *first_difference = f.string(), false;
+  }
+  return true;
+}
+
 int run_bench(const BenchArgs& a) {
-  const auto& [cli, as_json, repeat, name, resample_dims] = a;
+  const auto& cli = a.cli;
   std::mt19937_64 rng(std::random_device{}());
   BuildOptions base = cli.options();
-  const fs::path resample_dir = fs::temp_directory_path() / ("softatlas-resample-" + std::to_string(rng()));
+  const fs::path work_dir = fs::temp_directory_path() / ("softatlas-bench-" + std::to_string(rng()));
   struct Cleanup {
     fs::path p;
     ~Cleanup() {
       std::error_code ec;
       fs::remove_all(p, ec);
     }
-  } cleanup{resample_dir};
-  json resampled;
-  if (!resample_dims.empty()) {
-    const std::array<int, 3> to{resample_dims[0], resample_dims[1], resample_dims[2]};
-    fs::create_directories(resample_dir);
+  } cleanup{work_dir};
+  fs::create_directories(work_dir);
+  json resampled, replicated;
+  if (!a.resample_dims.empty()) {
+    const std::array<int, 3> to{a.resample_dims[0], a.resample_dims[1], a.resample_dims[2]};
     const Volume ct = read_volume(base.ct_path);
-    base.ct_path = (resample_dir / "ct.nii.gz").string();
+    base.ct_path = (work_dir / "ct.nii.gz").string();
     write_label_nifti(resample(ct, to, false), base.ct_path);
     for (size_t i = 0; i < base.labels.size(); ++i) {
       const Volume l = read_volume(base.labels[i].path);
       std::array<int, 3> lto;
       for (int d = 0; d < 3; ++d)
         lto[d] = static_cast<int>(std::lround(static_cast<double>(l.dims[d]) * to[d] / ct.dims[d]));
-      base.labels[i].path = (resample_dir / ("labels" + std::to_string(i) + ".nii.gz")).string();
+      base.labels[i].path = (work_dir / ("labels" + std::to_string(i) + ".nii.gz")).string();
       write_label_nifti(resample(l, lto, true), base.labels[i].path);
     }
     resampled = {to[0], to[1], to[2]};
   }
-  json best;
-  double best_total = 1e300;
-  for (int r = 0; r < std::max(repeat, 1); ++r) {
-    const fs::path tmp = fs::temp_directory_path() / ("softatlas-bench-" + std::to_string(rng()));
-    BuildOptions o = base;
-    o.output = tmp.string();
-    o.quiet = cli.quiet || as_json;
-    const auto t0 = std::chrono::steady_clock::now();
-    BuildResult res;
-    try {
-      res = build_organ_set(o);
-    } catch (...) {
-      std::error_code ec;
-      fs::remove_all(tmp, ec);
-      throw;
-    }
-    const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::error_code ec;
-    fs::remove_all(tmp, ec);
-    if (total < best_total) {
-      best_total = total;
-      best = json::object();
-      best["bench"] = "pipeline";
-      best["case"] = name.empty() ? (o.ct_path.empty() ? std::string("meshes") : o.ct_path) : name;
-      json stages = json::object();
-      for (const auto& [k, v] : res.times.seconds) stages[k] = v;
-      best["stage_seconds"] = stages;
-      best["total_seconds"] = total;
-      best["organs"] = res.organs;
-      best["connections"] = res.connections;
-      if (!resampled.is_null()) best["resampled_to"] = resampled;
-      best["quality"] = json::parse(res.quality_json)["organs"];
-    }
+  if (a.replicate > 1) {
+    const fs::path dir = work_dir / "replicated";
+    fs::create_directories(dir);
+    replicate_case(&base, a.replicate, dir, &replicated);
   }
-  best["repeat"] = std::max(repeat, 1);
-  if (as_json) {
-    std::cout << best.dump(2) << "\n";
+  std::vector<int> job_counts = a.compare_jobs;
+  if (job_counts.empty()) job_counts = {cli.jobs};
+  json runs = json::array();
+  std::vector<fs::path> outputs;
+  for (size_t n = 0; n < job_counts.size(); ++n) {
+    json best;
+    double best_total = 1e300;
+    for (int r = 0; r < std::max(a.repeat, 1); ++r) {
+      const fs::path out = work_dir / ("set-" + std::to_string(n) + "-" + std::to_string(r));
+      BuildOptions o = base;
+      o.output = out.string();
+      o.quiet = cli.quiet || a.as_json;
+      o.jobs = job_counts[n];
+      const auto cpu0 = process_cpu_seconds();
+      const auto t0 = std::chrono::steady_clock::now();
+      const BuildResult res = build_organ_set(o);
+      const double total = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      const auto cpu1 = process_cpu_seconds();
+      if (total < best_total) {
+        best_total = total;
+        best = json::object();
+        best["jobs"] = res.jobs;
+        best["total_seconds"] = total;
+        best["cpu_user_seconds"] = cpu1.first - cpu0.first;
+        best["cpu_system_seconds"] = cpu1.second - cpu0.second;
+        json stages = json::object();
+        for (const auto& [k, v] : res.times.seconds) stages[k] = v;
+        best["stage_seconds"] = stages;
+        best["organs"] = res.organs;
+        best["connections"] = res.connections;
+        json per_organ = json::array();
+        double organ_cpu = 0, longest = 0;
+        for (const auto& s : res.organ_seconds) {
+          per_organ.push_back({{"organ", s.organ}, {"surface", s.surface_s}, {"remesh", s.remesh_s}, {"cpu", s.cpu_s}});
+          organ_cpu += s.cpu_s, longest = std::max(longest, s.cpu_s);
+        }
+        best["organ_seconds"] = per_organ;
+        // Load-independent view: the organs' CPU time, the longest single organ (no schedule
+        // can beat it), and the serial parts (read, connect, write) from the CPU total.
+        best["organ_cpu_seconds"] = organ_cpu;
+        best["longest_organ_cpu_seconds"] = longest;
+        best["quality"] = json::parse(res.quality_json)["organs"];
+      }
+      if (r == 0) {
+        outputs.push_back(out);  // kept for the comparison
+      } else {
+        std::error_code ec;
+        fs::remove_all(out, ec);
+      }
+    }
+    best["repeat"] = std::max(a.repeat, 1);
+    runs.push_back(best);
+  }
+  json report = runs[0];
+  report["bench"] = "pipeline";
+  report["case"] = a.name.empty() ? (base.ct_path.empty() ? std::string("meshes") : cli.ct) : a.name;
+  if (!resampled.is_null()) report["resampled_to"] = resampled;
+  if (!replicated.is_null()) report["replicated"] = replicated;
+  if (job_counts.size() > 1) {
+    json cmp = json::array();
+    for (const auto& r : runs) {
+      json row = r;
+      row.erase("quality");
+      row.erase("organ_seconds");
+      cmp.push_back(row);
+    }
+    report["compare_jobs"] = cmp;
+    // The first run of each job count against the first of the first: the output must not
+    // depend on the number of jobs.
+    bool same = true;
+    std::string diff;
+    for (size_t n = 1; n < outputs.size() && same; ++n) same = same_organ_sets(outputs[0], outputs[n], &diff);
+    report["identical_output"] = same;
+    if (!same) report["first_difference"] = diff;
+  }
+  if (a.as_json) {
+    std::cout << report.dump(2) << "\n";
   } else {
-    std::printf("| stage | seconds |\n|---|---|\n");
-    for (auto it = best["stage_seconds"].begin(); it != best["stage_seconds"].end(); ++it)
-      std::printf("| %s | %.2f |\n", it.key().c_str(), it.value().get<double>());
-    std::printf("| total | %.2f |\n", best_total);
+    for (const auto& r : runs) {
+      std::printf("jobs %d: %.2f s wall, %.2f s user, %.2f s system\n", r["jobs"].get<int>(),
+                  r["total_seconds"].get<double>(), r["cpu_user_seconds"].get<double>(),
+                  r["cpu_system_seconds"].get<double>());
+      std::printf("| stage | seconds |\n|---|---|\n");
+      for (auto it = r["stage_seconds"].begin(); it != r["stage_seconds"].end(); ++it)
+        std::printf("| %s | %.2f |\n", it.key().c_str(), it.value().get<double>());
+    }
+    if (report.contains("identical_output"))
+      std::printf("identical output: %s\n", report["identical_output"].get<bool>() ? "yes" : "NO");
   }
-  return 0;
+  return report.value("identical_output", true) ? 0 : 1;
 }
 
 // Registration: each command's options live in a shared state its callback reads.
@@ -325,6 +479,15 @@ void add_bench_pipeline(CLI::App& bench, cli::Status* status) {
   app->add_option("--resample", a->resample_dims, "resample CT and labels to NX,NY,NZ first (e.g. 512,512,300)")
       ->delimiter(',')
       ->expected(3);
+  app->add_option("--compare-jobs", a->compare_jobs,
+                  "build with each job count (e.g. 1,2), report them side by side and check the outputs are "
+                  "identical")
+      ->delimiter(',')
+      ->check(CLI::Range(0, 256));
+  app->add_option("--replicate", a->replicate,
+                  "stack N copies of the CT and label map (copies get unused TotalSegmentator ids): N x the "
+                  "structures")
+      ->check(CLI::Range(1, 8));
   cli::on_run(app, status, [a] { return run_bench(*a); });
 }
 

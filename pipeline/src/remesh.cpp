@@ -12,6 +12,7 @@
 //   remeshed isotropically with its sharp edges held. A candidate replaces the isotropic mesh
 //   only if closer, self-intersection free and with its triangle quality
 //   -> normal offset that gives the surface its reference volume back.
+#include <CGAL/AABB_face_graph_triangle_primitive.h>
 #include <CGAL/AABB_traits.h>
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
@@ -417,36 +418,181 @@ Mesh quadric_to_count(const Mesh& base, int budget) {
   return m;
 }
 
-// Gives a closed surface its reference volume back by offsetting it along its (area-weighted)
-// vertex normals: to first order dV = A dd, so dd = (V* - V) / A, three rounds, until within
-// 0.5 %, at most max_offset_mm in all. An offset that makes the surface intersect itself is
-// halved, then given up. Returns the offset applied (mm, positive outward).
-double restore_volume(Mesh& m, double target, double max_offset_mm) {
-  auto normal = m.add_property_map<Mesh::Vertex_index, K::Vector_3>("v:offset_normal", K::Vector_3(0, 0, 0)).first;
-  double total = 0;
-  for (int round = 0; round < 3; ++round) {
-    const double V = PMP::volume(m), A = PMP::area(m);
-    if (A <= 0 || std::abs(V - target) <= 0.005 * target) break;
-    double d = std::clamp((target - V) / A, -max_offset_mm - total, max_offset_mm - total);
-    if (std::abs(d) < 1e-6) break;
-    PMP::compute_vertex_normals(m, normal);
-    std::vector<Point> start;
-    for (auto v : m.vertices()) start.push_back(m.point(v));
-    bool ok = false;
-    for (int halving = 0; halving < 2 && !ok; ++halving, d *= 0.5) {
-      size_t i = 0;
-      for (auto v : m.vertices()) m.point(v) = start[i++] + d * normal[v];
-      ok = !PMP::does_self_intersect(m);
-      if (ok) total += d;
+// The gradient of the enclosed volume with respect to each vertex, N_v = 1/6 sum over the faces
+// (v, a, b) around v of (a - v) x (b - v) = 1/3 sum of the faces' area vectors: moving v by s
+// along N_v / |N_v| changes the volume by |N_v| s to first order.
+std::vector<K::Vector_3> volume_gradients(const Mesh& m) {
+  std::vector<K::Vector_3> g(m.number_of_vertices(), K::Vector_3(0, 0, 0));
+  for (auto f : m.faces()) {
+    const auto h = m.halfedge(f);
+    const Mesh::Vertex_index v[3] = {m.source(h), m.target(h), m.target(m.next(h))};
+    const K::Vector_3 area2 = CGAL::cross_product(m.point(v[1]) - m.point(v[0]), m.point(v[2]) - m.point(v[0]));
+    for (const auto x : v) g[x.idx()] = g[x.idx()] + area2 / 6.0;
+  }
+  return g;
+}
+
+// The faces that intersect another face of the mesh (CGAL's box-intersection test).
+std::vector<Mesh::Face_index> intersecting_faces(const Mesh& m) {
+  std::vector<std::pair<Mesh::Face_index, Mesh::Face_index>> pairs;
+  PMP::self_intersections(m, std::back_inserter(pairs));
+  std::vector<Mesh::Face_index> out;
+  for (const auto& [a, b] : pairs) out.push_back(a), out.push_back(b);
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+// A coarse remesh of a label with thin gaps (a vertebra's processes 1-2 mm apart at 4 mm edges)
+// can pass through itself or fold. The vertices of the crossing faces and their neighbours are
+// moved halfway to the centroid of their neighbours (unfolds a fold) and pulled inward along
+// their volume gradient by a small step (two crossing sheets move apart), until nothing crosses.
+// Returns false (mesh unchanged) if that does not succeed within `rounds`.
+bool separate_crossings(Mesh& m, double step_mm, int rounds) {
+  std::vector<Point> start;
+  for (auto v : m.vertices()) start.push_back(m.point(v));
+  for (int round = 0; round < rounds; ++round) {
+    const std::vector<Mesh::Face_index> faces_x = intersecting_faces(m);
+    if (faces_x.empty()) return true;
+    const std::vector<K::Vector_3> g = volume_gradients(m);
+    std::vector<char> move(m.number_of_vertices(), 0);
+    for (auto f : faces_x)
+      for (auto v : CGAL::vertices_around_face(m.halfedge(f), m)) {
+        move[v.idx()] = 1;
+        for (auto u : CGAL::vertices_around_target(m.halfedge(v), m)) move[u.idx()] = 1;
+      }
+    std::vector<Point> next;
+    for (auto v : m.vertices()) {
+      Point p = m.point(v);
+      if (move[v.idx()]) {
+        double c[3] = {0, 0, 0};
+        int k = 0;
+        for (auto u : CGAL::vertices_around_target(m.halfedge(v), m))
+          c[0] += m.point(u).x(), c[1] += m.point(u).y(), c[2] += m.point(u).z(), ++k;
+        if (k > 0) p = Point(0.5 * (p.x() + c[0] / k), 0.5 * (p.y() + c[1] / k), 0.5 * (p.z() + c[2] / k));
+        const double len = std::sqrt(g[v.idx()].squared_length());
+        if (len > 0) p = p - (step_mm / len) * g[v.idx()];
+      }
+      next.push_back(p);
     }
-    if (!ok) {
-      size_t i = 0;
-      for (auto v : m.vertices()) m.point(v) = start[i++];
+    for (auto v : m.vertices()) m.point(v) = next[v.idx()];
+  }
+  if (!PMP::does_self_intersect(m)) return true;
+  size_t i = 0;
+  for (auto v : m.vertices()) m.point(v) = start[i++];
+  return false;
+}
+
+// Gives a closed surface its reference volume back by a per-vertex offset along the volume
+// gradient (area-weighted normal): dV = sum_v |N_v| s_v to first order. Each vertex's offset is
+// capped by 0.45 x the distance to the surface's other side along its direction (a ray cast into
+// the mesh's own AABB tree: two facing sheets of a thin part may both move, and still not meet)
+// and by max_offset_mm in all; the uncapped vertices share the rest evenly (a water level d with
+// sum_v |N_v| min(d, cap_v) = V* - V). Where the offset surface would still cross itself, the
+// vertices of the crossing faces keep their place (undone locally, not for the whole surface).
+// A surface that already crosses itself (reported as such) keeps the crossing faces' vertices
+// where they are and must not gain new crossings. Up to five rounds, until within 0.5 %. Returns the area-weighted mean offset (mm, positive
+// outward) and its largest value in *max_mm.
+double restore_volume(Mesh& m, double target, double max_offset_mm, double* max_mm) {
+  using Primitive = CGAL::AABB_face_graph_triangle_primitive<Mesh>;
+  using Tree = CGAL::AABB_tree<CGAL::AABB_traits<K, Primitive>>;
+  m.collect_garbage();
+  const size_t n = m.number_of_vertices();
+  std::vector<double> total(n, 0.0);  // signed offset so far per vertex
+  const std::vector<Mesh::Face_index> crossing_before = intersecting_faces(m);
+  std::vector<char> frozen(n, 0);
+  for (auto f : crossing_before)
+    for (auto v : CGAL::vertices_around_face(m.halfedge(f), m)) frozen[v.idx()] = 1;
+  auto new_crossings = [&] {
+    std::vector<Mesh::Face_index> out;
+    for (auto f : intersecting_faces(m))
+      if (!std::binary_search(crossing_before.begin(), crossing_before.end(), f)) out.push_back(f);
+    return out;
+  };
+  for (int round = 0; round < 5; ++round) {
+    const double V = PMP::volume(m);
+    if (std::abs(V - target) <= 0.005 * target) break;
+    const double sign = target > V ? 1.0 : -1.0;
+    const std::vector<K::Vector_3> g = volume_gradients(m);
+    std::vector<double> w(n, 0.0), cap(n, 0.0);
+    std::vector<K::Vector_3> dir(n, K::Vector_3(0, 0, 0));
+    {
+      Tree tree(faces(m).first, faces(m).second, m);
+      for (auto v : m.vertices()) {
+        const size_t i = v.idx();
+        w[i] = std::sqrt(g[i].squared_length());
+        if (w[i] <= 0) continue;
+        dir[i] = (sign / w[i]) * g[i];
+        const double room = max_offset_mm - sign * total[i];
+        if (room <= 0 || frozen[i]) continue;
+        std::vector<Mesh::Face_index> around;
+        for (auto f : CGAL::faces_around_target(m.halfedge(v), m))
+          if (f != Mesh::null_face()) around.push_back(f);
+        const K::Ray_3 ray(m.point(v), dir[i]);
+        const auto hit = tree.first_intersection(
+            ray, [&](Mesh::Face_index f) { return std::find(around.begin(), around.end(), f) != around.end(); });
+        double gap = std::numeric_limits<double>::infinity();
+        if (hit) {
+          if (const Point* p = boost::get<Point>(&hit->first))
+            gap = std::sqrt(CGAL::squared_distance(*p, m.point(v)));
+          else if (const K::Segment_3* sgm = boost::get<K::Segment_3>(&hit->first))
+            gap = std::sqrt(std::min(CGAL::squared_distance(sgm->source(), m.point(v)),
+                                     CGAL::squared_distance(sgm->target(), m.point(v))));
+        }
+        cap[i] = std::min(0.45 * gap, room);
+      }
+    }
+    const double need = std::abs(target - V);
+    auto gain = [&](double d) {
+      double s = 0;
+      for (size_t i = 0; i < n; ++i) s += w[i] * std::min(d, cap[i]);
+      return s;
+    };
+    double lo = 0, hi = max_offset_mm;
+    if (gain(hi) <= need) {
+      lo = hi;
+    } else {
+      for (int it = 0; it < 60; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (gain(mid) < need ? lo : hi) = mid;
+      }
+    }
+    const double d = lo;
+    if (d < 1e-6) break;
+    std::vector<Point> before;
+    std::vector<double> step(n, 0.0);
+    for (auto v : m.vertices()) {
+      before.push_back(m.point(v));
+      step[v.idx()] = std::min(d, cap[v.idx()]);
+      m.point(v) = m.point(v) + step[v.idx()] * dir[v.idx()];
+    }
+    bool ok = false;
+    for (int undo = 0; undo < 6 && !ok; ++undo) {
+      const std::vector<Mesh::Face_index> crossing = new_crossings();
+      ok = crossing.empty();
+      for (auto f : crossing)
+        for (auto v : CGAL::vertices_around_face(m.halfedge(f), m)) {
+          m.point(v) = before[v.idx()];
+          step[v.idx()] = 0;
+        }
+    }
+    if (!ok) {  // give the round up
+      for (auto v : m.vertices()) m.point(v) = before[v.idx()];
       break;
     }
+    double moved = 0;
+    for (size_t i = 0; i < n; ++i) total[i] += sign * step[i], moved += step[i];
+    if (moved <= 0) break;
   }
-  m.remove_property_map(normal);
-  return total;
+  double area = 0, sum = 0, mx = 0;
+  const std::vector<K::Vector_3> g = volume_gradients(m);
+  for (size_t i = 0; i < n; ++i) {
+    const double a = std::sqrt(g[i].squared_length());
+    area += a, sum += a * total[i];
+    if (std::abs(total[i]) > std::abs(mx)) mx = total[i];
+  }
+  *max_mm = mx;
+  return area > 0 ? sum / area : 0.0;
 }
 
 }  // namespace
@@ -588,8 +734,15 @@ RemeshResult repair_and_remesh(const io::TriMesh& input, const RemeshOptions& o,
       }
     }
   }
-  if (o.target_volume_mm3 > 0 && o.max_offset_mm > 0 && !res.self_intersections)
-    res.volume_offset_mm = restore_volume(chosen, o.target_volume_mm3, o.max_offset_mm);
+  // The chosen mesh may be a candidate that replaced a crossing isotropic mesh: ask again.
+  res.self_intersections = PMP::does_self_intersect(chosen);
+  chosen.collect_garbage();
+  if (res.self_intersections && separate_crossings(chosen, 0.05 * res.target_edge_mm, 10)) {
+    res.self_intersections = false;
+    res.repairs.push_back("crossings_separated");
+  }
+  if (o.target_volume_mm3 > 0 && o.max_offset_mm > 0)
+    res.volume_offset_mm = restore_volume(chosen, o.target_volume_mm3, o.max_offset_mm, &res.volume_offset_max_mm);
   res.mesh = to_trimesh(chosen);
   shape_distance(res.mesh, input, input_tree, &res.hausdorff_mm, &res.mean_distance_mm);
   return res;

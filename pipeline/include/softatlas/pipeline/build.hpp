@@ -38,10 +38,15 @@ struct BuildOptions {
   ConnectOptions connect;
   SegmentOptions segment;
   bool quiet = false;  // no progress on stderr
+  // Organs built at once (surface + repair + remesh, one thread each); 0 = one per hardware
+  // thread. The output does not depend on it (tested byte for byte).
+  int jobs = 0;
 };
 
+// Seconds per stage. "surface" and "remesh" are summed over organs (thread time, as if built one
+// after the other); "organs_wall" is the wall time of building all organs on the jobs' threads.
 struct StageTimes {
-  std::vector<std::pair<std::string, double>> seconds;  // in order: read, segment, surface, ...
+  std::vector<std::pair<std::string, double>> seconds;  // in order: read, segment, organs_wall, surface, ...
   void add(const std::string& stage, double s);
 };
 
@@ -49,6 +54,13 @@ struct BuildResult {
   std::string output;
   std::string quality_json;
   StageTimes times;
+  struct OrganSeconds {
+    std::string organ;
+    double surface_s, remesh_s;  // wall
+    double cpu_s;                // CPU time of its thread (surface + remesh)
+  };
+  std::vector<OrganSeconds> organ_seconds;  // in organ order
+  size_t jobs = 1;                          // threads the organs were built on
   size_t organs = 0;
   size_t connections = 0;
 };

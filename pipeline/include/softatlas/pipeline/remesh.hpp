@@ -26,8 +26,8 @@ struct RemeshOptions {
   double max_hausdorff_mm = 0.0;
   // Volume to give the final surface back (the label's voxel volume): smoothing, the staircase
   // chamfer of flying edges and remeshing all shrink a surface, thin ones most. The surface is
-  // offset along its normals by (target - V) / A until within 0.5 %, by at most max_offset_mm
-  // in all. 0 = keep the volume as it comes out.
+  // offset along its normals, per vertex, capped by the distance to its other side, until within
+  // 0.5 %, by at most max_offset_mm in all at any vertex. 0 = keep the volume as it comes out.
   double target_volume_mm3 = 0.0;
   double max_offset_mm = 0.0;
 };
@@ -41,7 +41,8 @@ struct RemeshResult {
   double target_edge_mm = 0.0;
   std::string simplification = "isotropic";  // or "isotropic_two_level", "garland_heckbert+isotropic"
   double isotropic_hausdorff_mm = 0.0;       // what the isotropic route reached
-  double volume_offset_mm = 0.0;             // normal offset that restored the volume
+  double volume_offset_mm = 0.0;             // area-weighted mean normal offset that restored the volume
+  double volume_offset_max_mm = 0.0;         // its largest value at one vertex (signed)
 };
 
 // Throws InputError naming `where` if the budget is below what a closed surface of the input's
