@@ -14,6 +14,11 @@ void write_png(const std::string& path, int width, int height, const std::vector
     throw std::runtime_error(path + ": pixel buffer does not match " + std::to_string(width) + "x" +
                              std::to_string(height));
   const std::string tmp = path + ".tmp";
+  // Every object with a destructor exists before setjmp: libpng's error longjmp (a full disk) skips
+  // destructors, so the row vector made after it leaked (LeakSanitizer, WriteFaults.FullDisk*).
+  std::vector<png_bytep> rows(static_cast<size_t>(height));
+  for (int y = 0; y < height; ++y)
+    rows[static_cast<size_t>(y)] = const_cast<png_bytep>(&rgba[static_cast<size_t>(y) * width * 4]);
   FILE* f = std::fopen(tmp.c_str(), "wb");
   if (!f) throw std::runtime_error(path + ": cannot open for writing");
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
@@ -29,9 +34,6 @@ void write_png(const std::string& path, int width, int height, const std::vector
                PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   png_set_compression_level(png, 6);
   png_write_info(png, info);
-  std::vector<png_bytep> rows(static_cast<size_t>(height));
-  for (int y = 0; y < height; ++y)
-    rows[static_cast<size_t>(y)] = const_cast<png_bytep>(&rgba[static_cast<size_t>(y) * width * 4]);
   png_write_image(png, rows.data());
   png_write_end(png, nullptr);
   png_destroy_write_struct(&png, &info);
