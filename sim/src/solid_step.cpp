@@ -41,7 +41,8 @@ using ColMatX3 = Eigen::Matrix<double, Eigen::Dynamic, 3>;
 constexpr int kDefaultNodes = 300;            // lattice nodes per organ when the material gives none
 constexpr int kMaxVolumePieces = 8;           // closed surface pieces of one organ with a volume constraint
 constexpr double kVolumeBand = 0.005;         // a piece's volume is kept within +-0.5 % of its rest volume
-constexpr double kVolumeStep = 0.3;           // cells a node may move per step to keep or give back a piece's volume
+constexpr double kVolumeStep = 1.0;           // cells a node may move per step to keep a piece's volume
+constexpr double kVolumeGiveBack = 0.3;       // cells a node may move per step to give back what contact took
 constexpr int kDefaultIterations = 4;         // local/global iterations per step (docs/physics.md)
 constexpr double kDefaultDampingRatio = 0.5;  // Rayleigh ratio at the lowest shear mode
 constexpr int kRotationIterations = 1;        // warm-started rotation-fit iterations per local step
@@ -734,7 +735,7 @@ void grasp_project(const SolidBody& b, const SolidWork& w, Nodes& X, Eigen::Map<
 // matrix: the correction spreads through the lattice as the elastic response to a pressure would,
 // not vertex by vertex), U first made to leave the held vertices where they are through the
 // grasp's Schur complement, then q -= U (G^T U)^-1 C. Once per step, after the local/global
-// iterations; no node moves more than 0.3 cell per step. The cells' mean dilatation keeps the
+// iterations; no node moves more than 1 cell per step. The cells' mean dilatation keeps the
 // lattice's volume, but a thin organ's surface runs through partly filled cells whose tetrahedra
 // do not each keep theirs (CT vessels changed by -6 % to +6 % under a 30 mm pull). One constraint
 // per piece: with one for the organ, the portal vein's 90-face second piece took up its large
@@ -1002,7 +1003,7 @@ void solid_restore_volume(const Model& m, const SolidBody& b, SolidWork& w, Stat
   double C[kMaxVolumePieces];
   embedded_volume(m, b, X, w.vol_p, w.vol_g, w.vol_gn, C);
   const size_t n3 = 3 * static_cast<size_t>(b.nnode);
-  const double inv_h = 1.0 / m.dt_s, cap = kVolumeStep * b.spacing_m;
+  const double inv_h = 1.0 / m.dt_s, cap = kVolumeGiveBack * b.spacing_m;
   auto moved_by_contact = [&](int32_t i) { return node_acc[4 * static_cast<size_t>(b.node_begin + i) + 3] > 0; };
   for (int32_t p = 0; p < b.npiece; ++p) {
     const double c = volume_excess(C[p], b.piece_rest_volume[p]);
