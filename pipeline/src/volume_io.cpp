@@ -1072,13 +1072,19 @@ void check_dicom_lengths(const fs::path& f) {
             "slice), got '" +
                 io::printable_text(pi) + "'");
     }
-    // GDCM asserts (PixmapReader::ReadImageInternal) on a retired Recognition Code that is not
-    // an ACR-NEMA one.
+    // GDCM asserts on a retired Recognition Code it does not know: PixmapReader::ReadImageInternal
+    // on one that is not ACR-NEMA, ReadACRNEMAImage on any but these four, byte for byte (fuzzing:
+    // "ACRNEMA" and a NUL passed the prefix test that was here). The LIBIDO codes are compared up
+    // to a NUL (strcmp), the ACR-NEMA ones whole.
     if (depth == 0 && group == 0x0008 && elem == 0x0010 && len > 0) {
       const std::string code = d.substr(pos, len);
-      if (code.rfind("ACR-NEMA", 0) != 0 && code.rfind("ACRNEMA", 0) != 0 && code.rfind("MIPS 2.0", 0) != 0)
-        throw InputError(where, "DICOM Recognition Code (0008,0010): expected ACR-NEMA, ACRNEMA or MIPS 2.0, got '" +
-                                    io::printable_text(code) + "'");
+      const std::string upto_nul = code.substr(0, code.find('\0'));
+      if (code != "ACR-NEMA 1.0" && code != "ACR-NEMA 2.0" && upto_nul != "ACRNEMA_LIBIDO_1.0" &&
+          upto_nul != "ACRNEMA_LIBIDO_1.1")
+        throw InputError(where,
+                         "DICOM Recognition Code (0008,0010): expected ACR-NEMA 1.0, ACR-NEMA 2.0, ACRNEMA_LIBIDO_1.0 or "
+                         "ACRNEMA_LIBIDO_1.1, got '" +
+                             io::printable_text(code) + "'");
     }
     pos += len;
     if (depth > 1000) throw InputError(where, "DICOM sequences nested more than 1000 deep");
