@@ -117,18 +117,24 @@ TEST(SolidModel, PerturbedRestDoesNotDrift) {
 }
 
 struct PullResult {
-  double reached_mm = 0, residual_mm = 0, residual_end_mm = 0, volume_change_pct = 0, peak_force_N = 0;
+  double reached_mm = 0, residual_mm = 0, residual_end_mm = 0, peak_force_N = 0;
+  double volume_change_pct = 0;      // largest |change| while held (pull and hold)
+  double volume_change_run_pct = 0;  // largest |change| over the whole run, as `bench restore` reports it
+  size_t grasped = 0;
   bool finite = true;
 };
 
-// Grasp the region at the top, pull `pull_m` along dir over 0.5 s, hold 1 s, release, 5 s more.
-PullResult pull_release(const sim::SceneDesc& scene, double pull_m, const std::array<double, 3>& dir) {
+// Grasp the free vertices within grasp_radius_m of the organ's extreme vertex along grasp_dir
+// (default: the region at the top), pull `pull_m` along dir over 0.5 s, hold 1 s, release, 5 s more.
+PullResult pull_release(const sim::SceneDesc& scene, double pull_m, const std::array<double, 3>& dir,
+                        const std::array<double, 3>& grasp_dir = {0, 1, 0}, double grasp_radius_m = 0.012) {
   const sim::Model m = sim::compile(scene);
   sim::State s = sim::make_state(m);
   sim::Work w = sim::make_work(m);
-  const std::vector<int32_t> grasp = global(m, region(scene.organs[0], {0, 1, 0}, 0.012));
+  const std::vector<int32_t> grasp = global(m, region(scene.organs[0], grasp_dir, grasp_radius_m));
   const double v0 = sim::organ_volume(m, s, 0), dt = m.dt_s;
   PullResult r;
+  r.grasped = grasp.size();
   sim::attach(m, s, grasp, {0, 0, 0}, 1);
   const int pull = static_cast<int>(std::lround(0.5 / dt)), hold = static_cast<int>(std::lround(1.0 / dt));
   const int after = static_cast<int>(std::lround(5.0 / dt));
@@ -141,8 +147,10 @@ PullResult pull_release(const sim::SceneDesc& scene, double pull_m, const std::a
     sim::step(m, s, w);
     const auto F = sim::tool_reaction(s);
     r.peak_force_N = std::max(r.peak_force_N, std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]));
+    const double volume_pct = 100.0 * std::fabs(sim::organ_volume(m, s, 0) / v0 - 1.0);
+    r.volume_change_run_pct = std::max(r.volume_change_run_pct, volume_pct);
     if (k < pull + hold) {
-      r.volume_change_pct = std::max(r.volume_change_pct, 100.0 * std::fabs(sim::organ_volume(m, s, 0) / v0 - 1.0));
+      r.volume_change_pct = std::max(r.volume_change_pct, volume_pct);
       if (k == pull + hold - 1) {
         double d = 0;
         for (int32_t v : grasp)
@@ -265,29 +273,18 @@ TEST(SolidModel, ThinOrganInTwoPiecesKeepsEachPiecesVolume) {
 // the constraint fell short in one step of the hold (bench restore: -4.15 %). Within 2 %, and it
 // comes back.
 TEST(SolidModel, SmallThinOrganHeldByTwoVerticesKeepsItsVolume) {
-  const sim::SceneDesc scene =
-      ct_solid_scene("adrenal_gland_right", "meshes/ct_adrenal_gland_right.obj", {72, 259, 363, 500});
-  const sim::Model m = sim::compile(scene);
-  ASSERT_EQ(m.solids.size(), 1u);
-  sim::State s = sim::make_state(m);
-  sim::Work w = sim::make_work(m);
-  const double s2 = std::sqrt(0.5), v0 = sim::organ_volume(m, s, 0);
-  const std::vector<int32_t> grasp = global(m, region(scene.organs[0], {0, s2, -s2}, 0.00188));
-  ASSERT_EQ(grasp.size(), 2u);
-  const int pull = 62, hold = 125, after = 625;
-  sim::attach(m, s, grasp, {0, 0, 0}, 1);
-  double worst = 0, residual_2s = 0;
-  for (int k = 0; k < pull + hold + after; ++k) {
-    if (k < pull) sim::move_attachment(s, {0, 0.030 * s2 * (k + 1) / pull, -0.030 * s2 * (k + 1) / pull});
-    if (k == pull + hold) sim::release(s);
-    sim::step(m, s, w);
-    worst = std::max(worst, std::fabs(sim::organ_volume(m, s, 0) / v0 - 1));
-    if (k == pull + hold + 250) residual_2s = residual_after_rigid(m, s);
-  }
-  std::printf("CT adrenal gland (%s): volume change %.2f %%, residual %.3f mm 2 s after release\n",
-              sim::solid_plan(m.solids[0]).c_str(), 100 * worst, 1e3 * residual_2s);
-  EXPECT_LE(worst, 0.02);
-  EXPECT_LT(residual_2s, 1e-3);
+  const double s2 = std::sqrt(0.5);
+  const PullResult r =
+      pull_release(ct_solid_scene("adrenal_gland_right", "meshes/ct_adrenal_gland_right.obj", {72, 259, 363, 500}),
+                   0.030, {0, s2, -s2}, {0, s2, -s2}, 0.00188);
+  std::printf(
+      "CT adrenal gland: %zu grasped, reached %.1f mm, volume change %.2f %%, residual %.3f mm 2 s after "
+      "release\n",
+      r.grasped, r.reached_mm, r.volume_change_run_pct, r.residual_mm);
+  ASSERT_EQ(r.grasped, 2u);
+  EXPECT_TRUE(r.finite);
+  EXPECT_LE(r.volume_change_run_pct, 2.0);
+  EXPECT_LT(r.residual_mm, 1.0);
 }
 
 // A hold next to an anchor: the CT pancreas (a slab 9 mm thick, its build's five anchors) pushed
