@@ -101,6 +101,7 @@ struct DemoArgs {
 
 int physics_demo(const DemoArgs& a) {
   const auto& [mesh_path, out, pull_mm, hold_steps] = a;
+  io::check_writable(out);  // before the runs, not after them
   const io::TriMesh mesh = io::read_mesh(mesh_path);
   // top face (highest centroid) and the 20 lowest vertices held, as in the paper's setting
   size_t top = 0;

@@ -1,13 +1,6 @@
 #include "entries.hpp"
 
-#include <filesystem>
 #include <stdexcept>
-
-#include "softatlas/app/lesson.hpp"
-#include "softatlas/pipeline/build.hpp"
-#include "softatlas/sim/error.hpp"
-
-namespace fs = std::filesystem;
 
 namespace softatlas::fuzz {
 
@@ -19,16 +12,10 @@ const std::vector<std::string>& targets() {
 }
 
 void feed(const std::string& target, const std::string& bytes) {
-  if (feed_reader(target, bytes) || feed_lesson(target, bytes) || feed_seeds(target, bytes)) return;
-  const fs::path dir = scratch();
-  if (target == "build_yaml") {
-    const fs::path f = dir / "build.yaml";
-    write_input(f.string(), bytes);
-    pipeline::BuildOptions options;
-    pipeline::apply_build_config(f.string(), &options);
-  } else {
-    throw std::invalid_argument("unknown fuzz target '" + target + "'");
-  }
+  if (feed_reader(target, bytes) || feed_lesson(target, bytes) || feed_seeds(target, bytes) ||
+      feed_build_config(target, bytes))
+    return;
+  throw std::invalid_argument("unknown fuzz target '" + target + "'");
 }
 
 }  // namespace softatlas::fuzz

@@ -25,6 +25,8 @@ bool feed_reader(const std::string& target, const std::string& bytes);
 bool feed_lesson(const std::string& target, const std::string& bytes);
 // The same for seed files (fuzz/seeds.cpp).
 bool feed_seeds(const std::string& target, const std::string& bytes);
+// The same for build.yaml (fuzz/build_config.cpp).
+bool feed_build_config(const std::string& target, const std::string& bytes);
 
 // Scratch folder of this process (created on first use, removed at exit), and a file writer.
 const std::string& scratch();

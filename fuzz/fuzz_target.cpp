@@ -26,7 +26,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
 #elif defined(SOFTATLAS_FUZZ_SEEDS)
     softatlas::fuzz::feed_seeds(SOFTATLAS_FUZZ_TARGET, bytes);  // the segmentation sources and the readers
 #else
-    softatlas::fuzz::feed(SOFTATLAS_FUZZ_TARGET, bytes);
+    softatlas::fuzz::feed_build_config(SOFTATLAS_FUZZ_TARGET, bytes);  // build.yaml's reader
 #endif
   } catch (const softatlas::InputError&) {}
   return 0;

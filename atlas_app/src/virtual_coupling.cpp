@@ -207,7 +207,6 @@ void CouplingPhysics::probe(const Vec3d& home_m, double patch_radius_m) {
   home_ = home_m;
   radius_m_ = patch_radius_m;
   attached_ = false;
-  have_surface_ = false;
   held_.clear();
 }
 

@@ -5,6 +5,7 @@
 
 #include <cerrno>
 #include <cstdlib>
+#include <cstring>
 #include <vector>
 
 #include "softatlas/sim/error.hpp"
@@ -27,6 +28,22 @@ void remove_stale_partials(const fs::path& dir, const std::string& stem) {
       fs::remove_all(it->path(), rm);
     }
   }
+}
+
+void check_writable(const std::string& target) {
+  std::error_code ec;
+  fs::path p = fs::absolute(target, ec).lexically_normal();
+  if (ec || target.empty()) throw InputError(target, "not a usable output path");
+  if (!p.has_filename()) p = p.parent_path();
+  // The folder the new entries go into: target itself when it is an existing folder, else its
+  // nearest existing ancestor.
+  if (!fs::is_directory(p, ec)) {
+    p = p.parent_path();
+    while (!fs::exists(p, ec) && p != p.parent_path()) p = p.parent_path();
+  }
+  if (!fs::is_directory(p, ec)) throw InputError(target, p.string() + " is not a folder");
+  if (::access(p.c_str(), W_OK | X_OK) != 0)
+    throw InputError(target, "cannot write into " + p.string() + ": " + std::strerror(errno));
 }
 
 StagedFolder::StagedFolder(const std::string& target) {

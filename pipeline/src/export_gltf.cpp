@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "softatlas/io/organ_set.hpp"
+#include "softatlas/io/output_folder.hpp"
 #include "softatlas/pipeline/build.hpp"
 #include "softatlas/sim/error.hpp"
 
@@ -175,31 +176,37 @@ void export_gltf(const std::string& set_folder, const std::string& out_path) {
               {"buffers", json::array({buffer})}};
   std::string text = doc.dump(glb ? -1 : 1);
 
-  const std::string tmp = out_path + ".tmp";
-  try {
-    if (glb) {
-      while (text.size() % 4) text.push_back(' ');  // JSON chunk padded with spaces
-      const uint32_t total = 12 + 8 + static_cast<uint32_t>(text.size()) + 8 + static_cast<uint32_t>(bin.size());
-      std::string head(28, '\0');
-      const uint32_t words[7] = {0x46546C67u, 2u, total, static_cast<uint32_t>(text.size()), 0x4E4F534Au, 0, 0};
-      std::memcpy(head.data(), words, 20);
-      std::string bin_head(8, '\0');
-      const uint32_t bw[2] = {static_cast<uint32_t>(bin.size()), 0x004E4942u};
-      std::memcpy(bin_head.data(), bw, 8);
-      write_file(tmp, head.substr(0, 20) + text + bin_head, bin);
-      fs::rename(tmp, out_path);
-    } else {
-      const std::string bin_tmp = bin_path.string() + ".tmp";
-      write_file(bin_tmp, "", bin);
-      write_file(tmp, text + "\n");
-      fs::rename(bin_tmp, bin_path);
-      fs::rename(tmp, out_path);
-    }
-  } catch (...) {
+  if (glb) {
+    while (text.size() % 4) text.push_back(' ');  // JSON chunk padded with spaces
+    const uint32_t total = 12 + 8 + static_cast<uint32_t>(text.size()) + 8 + static_cast<uint32_t>(bin.size());
+    std::string head(28, '\0');
+    const uint32_t words[7] = {0x46546C67u, 2u, total, static_cast<uint32_t>(text.size()), 0x4E4F534Au, 0, 0};
+    std::memcpy(head.data(), words, 20);
+    std::string bin_head(8, '\0');
+    const uint32_t bw[2] = {static_cast<uint32_t>(bin.size()), 0x004E4942u};
+    std::memcpy(bin_head.data(), bw, 8);
+    write_file(out_path, head.substr(0, 20) + text + bin_head, bin);
+    return;
+  }
+  // .gltf and its .bin: both written beside their targets first, moved into place together; an
+  // error names the file asked for, not the staging one.
+  const std::string tmp = out_path + ".partial", bin_tmp = bin_path.string() + ".partial";
+  auto remove_partials = [&] {
     std::error_code ec;
     fs::remove(tmp, ec);
-    fs::remove(bin_path.string() + ".tmp", ec);
-    throw;
+    fs::remove(bin_tmp, ec);
+  };
+  try {
+    write_file(bin_tmp, "", bin);
+    write_file(tmp, text + "\n");
+    fs::rename(bin_tmp, bin_path);
+    fs::rename(tmp, out_path);
+  } catch (const fs::filesystem_error& e) {
+    remove_partials();
+    throw InputError(out_path, "cannot write: " + e.code().message());
+  } catch (const InputError& e) {
+    remove_partials();
+    throw InputError("", io::name_target(io::name_target(e.what(), bin_tmp, bin_path.string()), tmp, out_path));
   }
 }
 

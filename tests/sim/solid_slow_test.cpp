@@ -108,5 +108,14 @@ TEST(SolidModel, GraspStiffnessMatchesTheFemReference) {
   }
 }
 
+// The three pulls of SolidModel.ReturnsAfterPullAndKeepsVolume with the other support (fixed where
+// the fast test has it free and the reverse).
+TEST(SlowSolidModel, ReturnsAfterPullInEveryDirectionFixedAndFree) {
+  const double s2 = std::sqrt(0.5);
+  expect_returns_after_pull({0, 1, 0}, false);
+  expect_returns_after_pull({0, s2, s2}, true);
+  expect_returns_after_pull({s2, 0, -s2}, false);
+}
+
 }  // namespace
 }  // namespace softatlas

@@ -172,10 +172,6 @@ class CouplingPhysics {
   uint32_t contact_id_ = 0;
   bool attached_ = false;
   uint64_t serial_ = 0;
-  // probe, free: the plane and patch stiffness nearest to the tip
-  Vec3d surface_{0, 0, 0}, normal_{0, 0, 1};
-  double K_surface_[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-  bool have_surface_ = false;
   Vec3d tip_{0, 0, 0};
 };
 

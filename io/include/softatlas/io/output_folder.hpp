@@ -11,6 +11,12 @@
 
 namespace softatlas::io {
 
+// Checks, before any work, that `target` (a file or folder to be made, or an existing folder) can
+// be written: its nearest existing ancestor must be a folder this process may write into (a
+// read-only file system or folder fails here, not after minutes of computing). Throws InputError
+// naming target. A full disk is only found when writing.
+void check_writable(const std::string& target);
+
 // Removes the staging folders `STEM<PID>` in `dir` whose process is gone (killed writers).
 void remove_stale_partials(const std::filesystem::path& dir, const std::string& stem);
 
