@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -116,15 +117,20 @@ struct PullResult {
   bool finite = true;
 };
 
+// Called with step -1 at rest (before the grasp) and then after every step.
+using OnStep = std::function<void(const sim::Model&, const sim::State&, int step)>;
+
 // Grasp the free vertices within grasp_radius_m of the organ's extreme vertex along grasp_dir
 // (default: the region at the top), pull `pull_m` along dir over 0.5 s, hold 1 s, release, 5 s more.
 inline PullResult pull_release(const sim::SceneDesc& scene, double pull_m, const std::array<double, 3>& dir,
-                               const std::array<double, 3>& grasp_dir = {0, 1, 0}, double grasp_radius_m = 0.012) {
+                               const std::array<double, 3>& grasp_dir = {0, 1, 0}, double grasp_radius_m = 0.012,
+                               const OnStep& on_step = {}) {
   const sim::Model m = sim::compile(scene);
   sim::State s = sim::make_state(m);
   sim::Work w = sim::make_work(m);
   const std::vector<int32_t> grasp = global(m, region(scene.organs[0], grasp_dir, grasp_radius_m));
   const double v0 = sim::organ_volume(m, s, 0), dt = m.dt_s;
+  if (on_step) on_step(m, s, -1);
   PullResult r;
   r.grasped = grasp.size();
   sim::attach(m, s, grasp, {0, 0, 0}, 1);
@@ -137,6 +143,7 @@ inline PullResult pull_release(const sim::SceneDesc& scene, double pull_m, const
     }
     if (k == pull + hold) sim::release(s);
     sim::step(m, s, w);
+    if (on_step) on_step(m, s, k);
     const auto F = sim::tool_reaction(s);
     r.peak_force_N = std::max(r.peak_force_N, std::sqrt(F[0] * F[0] + F[1] * F[1] + F[2] * F[2]));
     const double volume_pct = 100.0 * std::fabs(sim::organ_volume(m, s, 0) / v0 - 1.0);
