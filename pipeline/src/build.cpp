@@ -4,7 +4,6 @@
 // io::write_organ_set (temporary folder, then rename), so a failed build leaves nothing behind.
 #include "softatlas/pipeline/build.hpp"
 
-#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <atomic>
