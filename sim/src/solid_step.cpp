@@ -999,11 +999,10 @@ SolidStats solid_step(const Model& m, State& s, Work& work) {
 void solid_restore_volume(const Model& m, const SolidBody& b, SolidWork& w, State& s, const double* node_acc) {
   if (b.npiece == 0) return;
   double* X = s.solid_x.data() + 3 * static_cast<size_t>(b.node_begin);
-  double* Vn = s.solid_v.data() + 3 * static_cast<size_t>(b.node_begin);
   double C[kMaxVolumePieces];
   embedded_volume(m, b, X, w.vol_p, w.vol_g, w.vol_gn, C);
   const size_t n3 = 3 * static_cast<size_t>(b.nnode);
-  const double inv_h = 1.0 / m.dt_s, cap = kVolumeGiveBack * b.spacing_m;
+  const double cap = kVolumeGiveBack * b.spacing_m;
   auto moved_by_contact = [&](int32_t i) { return node_acc[4 * static_cast<size_t>(b.node_begin + i) + 3] > 0; };
   for (int32_t p = 0; p < b.npiece; ++p) {
     const double c = volume_excess(C[p], b.piece_rest_volume[p]);
@@ -1022,10 +1021,7 @@ void solid_restore_volume(const Model& m, const SolidBody& b, SolidWork& w, Stat
     if (step2 > cap * cap) lambda *= cap / std::sqrt(step2);
     for (int32_t i = 0; i < b.nnode; ++i) {
       if (moved_by_contact(i)) continue;
-      for (int k = 0; k < 3; ++k) {
-        const double d = -lambda * G[3 * i + k] / b.mass[i];
-        X[3 * i + k] += d, Vn[3 * i + k] += d * inv_h;
-      }
+      for (int k = 0; k < 3; ++k) X[3 * i + k] -= lambda * G[3 * i + k] / b.mass[i];
     }
   }
 }

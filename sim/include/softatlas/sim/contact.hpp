@@ -11,10 +11,12 @@
 //               Mueller et al. 2007, the non-penetration constraint n . (p - sum_i b_i x_i) >= 0
 //               of a vertex p and its face's closest point): a few Gauss-Seidel sweeps, movable
 //               vertices weighted equally, fixed and rigid vertices immovable, tool-held ones
-//               until the last round (the tool's hold is a proxy that contact stops, follow_contact); the
-//               displacement becomes velocity (dx / h). On solid organs the surface vertices'
-//               displacements move the lattice nodes (weighted by the embedding), and the
-//               surface then follows the lattice.
+//               until the last round (the tool's hold is a proxy that contact stops, follow_contact).
+//               Inelastic: what the projection moved loses its velocity into what it touched,
+//               nothing is added (contact.cpp stop_approach, which says where and why; the
+//               displacement added as velocity dx / h flung organs squeezed against a bone). On solid
+//               organs the surface vertices' displacements move the lattice nodes (weighted by
+//               the embedding), and the surface then follows the lattice.
 //   exemptions  two organs overlapping deeper than 2 mm at rest (a vessel inside the liver) get no
 //               contact between them; a vertex inside another organ at rest (the organ sets' surfaces touch and overlap
 //               by a voxel or two; a vessel runs inside the liver) is never projected; a vertex
@@ -71,6 +73,7 @@ struct ContactWork {
   std::vector<double> organ_moved;   // #organs: the most any of its vertices moved
   std::vector<uint8_t> pair_before;  // #organs^2: the pairs the distances were found against
   std::vector<double> node_acc;      // solid lattice nodes: #nodes * 4 (dx dy dz, weight)
+  std::vector<uint8_t> node_stop;    // solid lattice nodes: moved for a penetrating vertex
   double face_radius = 0.0;          // largest centroid-to-corner distance in the grid this step
 };
 

@@ -155,7 +155,8 @@ double solid_surface_update(const Model& model, const SolidBody& body, State& st
 // After contact moved some of the organ's nodes (node_acc[4 g + 3] > 0 for global node g, as
 // contact.cpp accumulates them): each closed piece's volume given back by the nodes contact left
 // alone, one mass-weighted projection (003 eq 25 with eqs 27-30 on the embedded surface), positions
-// and velocities; an organ pressed flat against its neighbour bulges elsewhere, as tissue does.
+// only (like contact's own correction); an organ pressed flat against its neighbour bulges
+// elsewhere, as tissue does.
 void solid_restore_volume(const Model& model, const SolidBody& body, SolidWork& work, State& state,
                           const double* node_acc);
 
